@@ -1,12 +1,15 @@
-"""Shared fixtures: reference-data location and free loopback ports."""
+"""Shared fixtures: reference data, free loopback ports, a Zenoh router and peers (real Zenoh, in-process)."""
 
 from __future__ import annotations
 
 import os
 import socket
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+
+from mjnav.bus import Bus, BusConfig
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -38,3 +41,25 @@ def free_port() -> int:
 def port() -> int:
     """A free loopback TCP port for one test."""
     return free_port()
+
+
+@pytest.fixture
+def router_endpoint() -> Iterator[str]:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = Bus.open(BusConfig(mode="router", connect=(), listen=(endpoint,)))
+    yield endpoint
+    router.close()
+
+
+@pytest.fixture
+def peer(router_endpoint: str) -> Iterator[Callable[..., Bus]]:
+    opened: list[Bus] = []
+
+    def make(namespace: str = "robot0") -> Bus:
+        bus = Bus.open(BusConfig(connect=(router_endpoint,)), namespace)
+        opened.append(bus)
+        return bus
+
+    yield make
+    for bus in opened:
+        bus.close()

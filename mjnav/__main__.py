@@ -1,0 +1,7 @@
+"""``python -m mjnav`` is the ``mjnav`` command."""
+
+import sys
+
+from mjnav.cli import main
+
+sys.exit(main())

@@ -1,0 +1,39 @@
+"""The Zenoh bus: layered session configuration and typed publish/subscribe/request over the topic table."""
+
+from mjnav.bus.bus import (
+    Bus,
+    BusStats,
+    NoReply,
+    Publisher,
+    RemoteError,
+    Subscription,
+    cdr_encoding,
+    wait_until,
+)
+from mjnav.bus.config import (
+    DEFAULT_PORT,
+    DEFAULT_ROUTER,
+    BusConfig,
+    BusConfigError,
+    add_bus_arguments,
+    bus_config_from_args,
+    load_bus_config,
+)
+
+__all__ = [
+    "DEFAULT_PORT",
+    "DEFAULT_ROUTER",
+    "Bus",
+    "BusConfig",
+    "BusConfigError",
+    "BusStats",
+    "NoReply",
+    "Publisher",
+    "RemoteError",
+    "Subscription",
+    "add_bus_arguments",
+    "bus_config_from_args",
+    "cdr_encoding",
+    "load_bus_config",
+    "wait_until",
+]

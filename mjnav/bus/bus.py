@@ -1,0 +1,436 @@
+"""Typed publish/subscribe and request/reply over Zenoh, keyed by the topic table.
+
+A :class:`Bus` wraps one Zenoh session and one robot namespace. Publishers encode ROS 2 messages to CDR and check
+their type against the table; subscriptions decode and validate every payload in Zenoh's callback thread and keep
+the newest message (snapshot topics) or every message (event topics). A payload that does not decode or validate is
+counted and logged with its key and the reason — it never reaches the service and never raises into it.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import zenoh
+
+from mjnav.bus.config import BusConfig
+from mjnav.msgs import codec
+from mjnav.msgs.topics import (
+    DEFAULT_NAMESPACE,
+    Kind,
+    Topic,
+    alive_key,
+    check_namespace,
+    endpoint,
+    topic,
+)
+from mjnav.msgs.validate import validate
+
+log = logging.getLogger("mjnav.bus")
+
+#: Zenoh encodings accepted for CDR payloads (our own, plain bytes as zenoh-bridge-ros2dds sends them).
+_CDR_ENCODINGS = ("application/cdr", "zenoh/bytes")
+#: Rejections per key logged in full before the log is thinned to one line per second.
+_LOG_FIRST = 10
+
+
+class RemoteError(RuntimeError):
+    """A request/reply endpoint answered with an error."""
+
+
+class NoReply(TimeoutError):
+    """No endpoint answered a request within its timeout."""
+
+
+def cdr_encoding(msgtype: str) -> zenoh.Encoding:
+    """The Zenoh encoding mjnav puts on its samples: ``application/cdr;<ros type>``."""
+    return zenoh.Encoding.APPLICATION_CDR.with_schema(msgtype)
+
+
+@dataclass
+class BusStats:
+    """Message counters of one bus (all subscriptions and publishers of a process)."""
+
+    received: int = 0
+    rejected: int = 0
+    published: int = 0
+    rejected_by_key: dict[str, int] = field(default_factory=dict)
+    last_rejection: str = ""
+
+
+class _RejectLog:
+    """Logs rejections with key and reason: the first few per key in full, then at most one line per second."""
+
+    def __init__(self) -> None:
+        self._count: dict[str, int] = {}
+        self._last_log: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+
+    def __call__(self, key: str, reason: str) -> None:
+        n = self._count.get(key, 0) + 1
+        self._count[key] = n
+        now = time.monotonic()
+        if n <= _LOG_FIRST or now - self._last_log.get(key, 0.0) >= 1.0:
+            extra = self._suppressed.pop(key, 0)
+            more = f" ({extra} more since last report)" if extra else ""
+            log.warning("rejected message on %s: %s%s", key, reason, more)
+            self._last_log[key] = now
+        else:
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+
+
+class Publisher:
+    """Publishes messages of one topic; snapshot topics may drop under congestion, events never do."""
+
+    def __init__(self, bus: Bus, row: Topic, key: str) -> None:
+        self.topic = row
+        self.key = key
+        self._bus = bus
+        event = row.kind is Kind.EVENT
+        self._pub = bus.session.declare_publisher(
+            key,
+            encoding=cdr_encoding(row.msgtype),
+            congestion_control=zenoh.CongestionControl.BLOCK if event else zenoh.CongestionControl.DROP,
+            reliability=zenoh.Reliability.RELIABLE,
+            priority=zenoh.Priority.DATA_HIGH if event else zenoh.Priority.DATA,
+            express=not event,
+        )
+
+    def put(self, msg: Any) -> None:
+        """Encode ``msg`` (must be of the topic's type) and publish it."""
+        self.put_bytes(codec.encode(msg, self.topic.msgtype))
+
+    def put_bytes(self, payload: bytes) -> None:
+        """Publish an already-encoded CDR payload."""
+        self._pub.put(payload)
+        self._bus._count_published()
+
+    def wait_for_subscribers(self, timeout_s: float) -> bool:
+        """Block until at least one subscriber matches this key (or the timeout); returns whether one did."""
+        matched = threading.Event()
+
+        def on_status(status: zenoh.MatchingStatus) -> None:
+            if status.matching:
+                matched.set()
+
+        listener = self._pub.declare_matching_listener(on_status)
+        try:
+            if self._pub.matching_status.matching:  # type: ignore[attr-defined]
+                return True
+            return matched.wait(timeout_s)
+        finally:
+            listener.undeclare()
+
+    def close(self) -> None:
+        """Undeclare the publisher."""
+        self._pub.undeclare()
+
+
+class Subscription:
+    """Receives one topic (or a wildcard over per-service topics), decoded and validated.
+
+    Snapshot topics keep only the newest message per key; event topics queue every message until drained.
+    """
+
+    def __init__(
+        self,
+        bus: Bus,
+        row: Topic,
+        key: str,
+        callback: Callable[[Any], None] | None,
+        check: Callable[[Any], None] | None,
+    ) -> None:
+        self.topic = row
+        self.key = key
+        self._bus = bus
+        self._callback = callback
+        self._check = check
+        self._cond = threading.Condition()
+        self._latest: Any = None
+        self._latest_key = ""
+        self._by_key: dict[str, Any] = {}
+        self._queue: deque[Any] = deque()
+        self._fresh = False
+        self.count = 0
+        self.last_receive_monotonic = 0.0
+        self._sub = bus.session.declare_subscriber(key, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        reason = _encoding_problem(sample.encoding, self.topic.msgtype)
+        msg = None
+        if reason is None:
+            try:
+                msg = codec.decode(sample.payload.to_bytes(), self.topic.msgtype)
+                validate(msg)
+                if self._check is not None:
+                    self._check(msg)
+            except codec.MessageError as exc:
+                reason = str(exc)
+        if reason is not None:
+            self._bus._reject(key, reason)
+            return
+        with self._cond:
+            self._latest = msg
+            self._latest_key = key
+            self._by_key[key] = msg
+            if self.topic.kind is Kind.EVENT:
+                self._queue.append(msg)
+            self._fresh = True
+            self.count += 1
+            self.last_receive_monotonic = time.monotonic()
+            self._cond.notify_all()
+        self._bus._count_received()
+        if self._callback is not None:
+            try:
+                self._callback(msg)
+            except Exception:
+                log.exception("callback for %s failed", key)
+
+    def latest(self) -> Any:
+        """The newest message received (``None`` before the first)."""
+        with self._cond:
+            return self._latest
+
+    def latest_by_key(self) -> dict[str, Any]:
+        """Newest message per concrete key (useful on wildcard subscriptions such as ``status/*``)."""
+        with self._cond:
+            return dict(self._by_key)
+
+    def take(self) -> Any:
+        """The newest message if one arrived since the last ``take``, else ``None``."""
+        with self._cond:
+            if not self._fresh:
+                return None
+            self._fresh = False
+            return self._latest
+
+    def drain(self) -> list[Any]:
+        """Every queued message of an event topic, oldest first (the queue is emptied)."""
+        with self._cond:
+            items = list(self._queue)
+            self._queue.clear()
+            self._fresh = False
+            return items
+
+    def wait(self, timeout_s: float, predicate: Callable[[Any], bool] | None = None) -> Any:
+        """Wait until a message arrives (that satisfies ``predicate``, when given); returns it or ``None``.
+
+        Only messages arriving after the call count, unless ``predicate`` already holds for the newest one.
+        """
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            if predicate is not None and self._latest is not None and predicate(self._latest):
+                return self._latest
+            seen = self.count
+            while True:
+                if self.count != seen:
+                    seen = self.count
+                    if predicate is None or predicate(self._latest):
+                        return self._latest
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return None
+                self._cond.wait(remaining)
+
+    def close(self) -> None:
+        """Undeclare the subscriber."""
+        self._sub.undeclare()
+
+
+def _encoding_problem(encoding: zenoh.Encoding, msgtype: str) -> str | None:
+    text = str(encoding)
+    base, _, schema = text.partition(";")
+    if base not in _CDR_ENCODINGS:
+        return f"wrong encoding {text!r} (expected CDR of {msgtype})"
+    if base == "application/cdr" and schema and schema != msgtype:
+        return f"wrong type {schema} (expected {msgtype})"
+    return None
+
+
+class Bus:
+    """One Zenoh session bound to a robot namespace, with typed topics and endpoints.
+
+    Args:
+        session: an open ``zenoh.Session``; the bus closes it in :meth:`close` when it opened it itself.
+        namespace: robot namespace that prefixes every key (default ``robot0``).
+    """
+
+    def __init__(self, session: zenoh.Session, namespace: str = DEFAULT_NAMESPACE, *, owns_session: bool = False):
+        check_namespace(namespace)
+        self.session = session
+        self.namespace = namespace
+        self.stats = BusStats()
+        self._owns_session = owns_session
+        self._lock = threading.Lock()
+        self._reject_log = _RejectLog()
+        self._declared: list[Any] = []
+
+    @classmethod
+    def open(cls, config: BusConfig, namespace: str = DEFAULT_NAMESPACE) -> Bus:
+        """Open a Zenoh session with ``config`` and wrap it."""
+        return cls(zenoh.open(config.to_zenoh()), namespace, owns_session=True)
+
+    def __enter__(self) -> Bus:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Undeclare everything this bus declared and close the session if the bus opened it."""
+        for entity in reversed(self._declared):
+            try:
+                entity.close() if hasattr(entity, "close") else entity.undeclare()
+            except Exception as exc:  # the session may already be gone
+                log.debug("undeclare failed: %s", exc)
+        self._declared.clear()
+        if self._owns_session and not self.session.is_closed():
+            self.session.close()
+
+    # ------------------------------------------------------------------------------------------------- counters
+
+    def _count_received(self) -> None:
+        with self._lock:
+            self.stats.received += 1
+
+    def _count_published(self) -> None:
+        with self._lock:
+            self.stats.published += 1
+
+    def _reject(self, key: str, reason: str) -> None:
+        with self._lock:
+            self.stats.rejected += 1
+            self.stats.rejected_by_key[key] = self.stats.rejected_by_key.get(key, 0) + 1
+            self.stats.last_rejection = f"{key}: {reason}"
+        self._reject_log(key, reason)
+
+    # ----------------------------------------------------------------------------------------- pub/sub by name
+
+    def key(self, name: str, service: str | None = None) -> str:
+        """The key of topic ``name`` in this bus's namespace."""
+        return topic(name).key(self.namespace, service)
+
+    def publisher(self, name: str, service: str | None = None) -> Publisher:
+        """Declare a publisher for topic ``name`` (per-service topics need ``service``)."""
+        row = topic(name)
+        pub = Publisher(self, row, row.key(self.namespace, service))
+        self._declared.append(pub)
+        return pub
+
+    def subscribe(
+        self,
+        name: str,
+        *,
+        callback: Callable[[Any], None] | None = None,
+        check: Callable[[Any], None] | None = None,
+        service: str | None = None,
+    ) -> Subscription:
+        """Subscribe to topic ``name``.
+
+        Args:
+            name: topic name from the table.
+            callback: optional function called (in Zenoh's thread) with each accepted message.
+            check: extra validation; raise :class:`mjnav.msgs.MessageError` to reject a message.
+            service: the service of a per-service topic (``"*"`` for all).
+        """
+        row = topic(name)
+        sub = Subscription(self, row, row.key(self.namespace, service), callback, check)
+        self._declared.append(sub)
+        return sub
+
+    # ------------------------------------------------------------------------------------------- request/reply
+
+    def serve(self, name: str, handler: Callable[[Any], Any], service: str | None = None) -> Any:
+        """Answer requests on endpoint ``name`` with ``handler(request) -> response``.
+
+        An empty request payload stands for a default-valued request. A request that does not decode, or a
+        handler that raises, is answered with an error reply (the text names the problem) and counted.
+        """
+        ep = endpoint(name)
+        key = ep.key(self.namespace, service)
+
+        def on_query(query: zenoh.Query) -> None:
+            try:
+                payload = query.payload.to_bytes() if query.payload is not None else b""
+                request = codec.decode(payload, ep.request_type) if payload else codec.from_dict(ep.request_type)
+                validate(request)
+            except codec.MessageError as exc:
+                self._reject(key, str(exc))
+                query.reply_err(f"bad request: {exc}")
+                return
+            try:
+                response = handler(request)
+                data = codec.encode(response, ep.response_type)
+            except Exception as exc:
+                log.exception("handler for %s failed", key)
+                query.reply_err(f"{type(exc).__name__}: {exc}")
+                return
+            query.reply(key, data, encoding=cdr_encoding(ep.response_type))
+
+        queryable = self.session.declare_queryable(key, on_query)
+        self._declared.append(queryable)
+        return queryable
+
+    def call(self, name: str, request: Any = None, *, timeout_s: float = 5.0, service: str | None = None) -> Any:
+        """Send a request to endpoint ``name`` and return the decoded response.
+
+        Raises:
+            NoReply: nobody answered within ``timeout_s``.
+            RemoteError: the server answered with an error.
+        """
+        ep = endpoint(name)
+        key = ep.key(self.namespace, service)
+        payload = codec.encode(request, ep.request_type) if request is not None else b""
+        replies = self.session.get(key, payload=payload, encoding=cdr_encoding(ep.request_type), timeout=timeout_s)
+        for reply in replies:
+            if reply.ok is not None:
+                return codec.decode(reply.ok.payload.to_bytes(), ep.response_type)
+            err = reply.err
+            raise RemoteError(err.payload.to_string() if err is not None else "error reply without payload")
+        raise NoReply(f"no reply on {key} within {timeout_s} s")
+
+    # ------------------------------------------------------------------------------------------------ liveliness
+
+    def declare_alive(self, service: str) -> Any:
+        """Declare the liveliness token ``mjnav/alive/<ns>/<service>``; it vanishes when the process does."""
+        token = self.session.liveliness().declare_token(alive_key(self.namespace, service))
+        self._declared.append(token)
+        return token
+
+    def alive_services(self, timeout_s: float = 1.0) -> list[str]:
+        """Names of the services whose liveliness token is up in this namespace."""
+        prefix = alive_key(self.namespace, "")
+        replies = self.session.liveliness().get(alive_key(self.namespace, "*"), timeout=timeout_s)
+        return sorted(str(r.ok.key_expr)[len(prefix) :] for r in replies if r.ok is not None)
+
+    def watch_alive(self, callback: Callable[[str, bool], None]) -> Any:
+        """Call ``callback(service, alive)`` whenever a service token of this namespace appears or vanishes."""
+        prefix = alive_key(self.namespace, "")
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr)[len(prefix) :], sample.kind == zenoh.SampleKind.PUT)
+
+        sub = self.session.liveliness().declare_subscriber(alive_key(self.namespace, "*"), on_sample, history=True)
+        self._declared.append(sub)
+        return sub
+
+
+def wait_until(predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.01) -> bool:
+    """Poll ``predicate`` until it holds or ``timeout_s`` passes; returns whether it held.
+
+    For conditions that have no event to wait on (process state, files); message arrivals should use
+    :meth:`Subscription.wait` instead.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        if predicate():
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(poll_s)

@@ -1,0 +1,201 @@
+"""Bus tools: ``mjnav topics``, ``mjnav echo KEY``, ``mjnav pub KEY``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from typing import Any
+
+_TOPICS_EPILOG = "Keys are <namespace>/<topic>; see the topic table in README.md."
+
+
+def register(sub: Any) -> None:
+    """Add ``topics``, ``echo`` and ``pub``."""
+    from mjnav.bus import add_bus_arguments
+
+    topics = sub.add_parser(
+        "topics",
+        help="list live keys with their type and rate",
+        description="Listen to every key for a while and list what is being published, with rates, "
+        "plus the services whose liveliness token is up. " + _TOPICS_EPILOG,
+    )
+    topics.add_argument("--duration", type=float, default=2.0, metavar="S", help="seconds to listen (default 2)")
+    topics.add_argument("--ns", default="robot0", help="namespace whose services to list (default robot0)")
+    topics.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    add_bus_arguments(topics)
+    topics.set_defaults(func=run_topics)
+
+    echo = sub.add_parser(
+        "echo",
+        help="print decoded messages of a key",
+        description="Subscribe to KEY (e.g. robot0/odom, or robot0/status/* for every service) and print each "
+        "decoded message as a JSON line (or YAML). Payloads that fail to decode or validate are reported on stderr. "
+        + _TOPICS_EPILOG,
+    )
+    echo.add_argument("key", help="Zenoh key, e.g. robot0/scan")
+    echo.add_argument("--count", type=int, metavar="N", help="exit after N messages")
+    echo.add_argument("--timeout", type=float, metavar="S", help="exit with code 1 if no message within S seconds")
+    echo.add_argument("--format", choices=("json", "yaml"), default="json", help="output format (default json)")
+    add_bus_arguments(echo)
+    echo.set_defaults(func=run_echo)
+
+    pub = sub.add_parser(
+        "pub",
+        help="publish a message built from YAML",
+        description="Publish a message of KEY's type built from YAML; fields left out take ROS defaults (0, '', []). "
+        "Waits up to 2 s for a subscriber before the first message so none is lost to discovery. " + _TOPICS_EPILOG,
+        epilog="Example: mjnav pub robot0/cmd_vel --yaml '{linear: {x: 0.25}, angular: {z: -0.5}}' --count 5",
+    )
+    pub.add_argument("key", help="Zenoh key, e.g. robot0/cmd_vel")
+    pub.add_argument("--yaml", default="{}", help="message fields as YAML (default: all defaults)")
+    pub.add_argument("--count", type=int, default=1, metavar="N", help="messages to send (default 1)")
+    pub.add_argument("--rate", type=float, default=10.0, metavar="HZ", help="send rate (default 10 Hz)")
+    add_bus_arguments(pub)
+    pub.set_defaults(func=run_pub)
+
+
+def _open(args: argparse.Namespace, namespace: str) -> Any:
+    from mjnav.bus import Bus, bus_config_from_args
+
+    return Bus.open(bus_config_from_args(args), namespace)
+
+
+def _resolve(key: str) -> tuple[str, Any, str | None]:
+    from mjnav.msgs import resolve_key
+
+    namespace, row = resolve_key(key)
+    service = key.rsplit("/", 1)[1] if row.per_service else None
+    return namespace, row, service
+
+
+def run_topics(args: argparse.Namespace) -> int:
+    """``mjnav topics``."""
+    from mjnav.msgs import resolve_key
+
+    counts: dict[str, int] = {}
+    first: dict[str, float] = {}
+    last: dict[str, float] = {}
+    lock = threading.Lock()
+
+    def on_sample(sample: Any) -> None:
+        key = str(sample.key_expr)
+        now = time.monotonic()
+        with lock:
+            counts[key] = counts.get(key, 0) + 1
+            first.setdefault(key, now)
+            last[key] = now
+
+    with _open(args, args.ns) as bus:
+        sub = bus.session.declare_subscriber("**", on_sample)
+        time.sleep(args.duration)  # listening window, not synchronisation
+        sub.undeclare()
+        alive = bus.alive_services()
+    rows: list[dict[str, Any]] = []
+    for key in sorted(counts):
+        try:
+            _, row = resolve_key(key)
+            msgtype, kind = row.msgtype, row.kind.value
+        except KeyError:
+            msgtype, kind = "?", "?"
+        span = last[key] - first[key]
+        rate = (counts[key] - 1) / span if counts[key] > 1 and span > 0 else 0.0
+        rows.append(
+            {
+                "key": key,
+                "type": msgtype,
+                "delivery": kind,
+                "rate_hz": round(rate, 2),
+                "messages": counts[key],
+            }
+        )
+    if args.json:
+        print(json.dumps({"topics": rows, "services_alive": alive}))
+        return 0
+    if not rows:
+        print(f"no messages in {args.duration:.1f} s")
+    else:
+        width = max(len(r["key"]) for r in rows)
+        print(f"{'key':{width}s}  {'type':32s} {'delivery':9s} {'rate Hz':>8s} {'msgs':>6s}")
+        for r in rows:
+            print(f"{r['key']:{width}s}  {r['type']:32s} {r['delivery']:9s} {r['rate_hz']:8.2f} {r['messages']:6d}")
+    print(f"services alive in {args.ns}: {', '.join(alive) if alive else 'none'}")
+    return 0
+
+
+def run_echo(args: argparse.Namespace) -> int:
+    """``mjnav echo``."""
+    import yaml
+
+    from mjnav.msgs import to_dict
+
+    try:
+        namespace, row, service = _resolve(args.key)
+    except (KeyError, ValueError) as exc:
+        print(f"mjnav echo: {exc}", file=sys.stderr)
+        return 2
+    done = threading.Event()
+    printed = 0
+    lock = threading.Lock()
+
+    def on_msg(msg: Any) -> None:
+        nonlocal printed
+        with lock:
+            if done.is_set():
+                return
+            data = to_dict(msg)
+            if args.format == "json":
+                sys.stdout.write(json.dumps(data) + "\n")
+            else:
+                sys.stdout.write("---\n" + yaml.safe_dump(data, sort_keys=False))
+            sys.stdout.flush()
+            printed += 1
+            if args.count is not None and printed >= args.count:
+                done.set()
+
+    from mjnav.runtime.logs import setup_logging
+
+    setup_logging("WARNING")
+    with _open(args, namespace) as bus:
+        bus.subscribe(row.name, callback=on_msg, service=service)
+        deadline = None if args.timeout is None else time.monotonic() + args.timeout
+        try:
+            while not done.wait(0.1):
+                if deadline is not None and printed == 0 and time.monotonic() >= deadline:
+                    print(f"mjnav echo: no message on {args.key} within {args.timeout} s", file=sys.stderr)
+                    return 1
+        except KeyboardInterrupt:
+            pass
+    return 0
+
+
+def run_pub(args: argparse.Namespace) -> int:
+    """``mjnav pub``."""
+    import yaml
+
+    from mjnav.msgs import MessageError, from_dict, validate
+
+    try:
+        namespace, row, service = _resolve(args.key)
+        data = yaml.safe_load(args.yaml)
+        msg = from_dict(row.msgtype, data if data is not None else {})
+        validate(msg)
+        if args.count < 1 or not args.rate > 0:
+            raise ValueError("--count must be >= 1 and --rate > 0")
+    except (KeyError, ValueError, MessageError, yaml.YAMLError) as exc:
+        print(f"mjnav pub: {exc}", file=sys.stderr)
+        return 2
+    with _open(args, namespace) as bus:
+        pub = bus.publisher(row.name, service=service)
+        if not pub.wait_for_subscribers(2.0):
+            print(f"mjnav pub: no subscriber on {pub.key} yet; publishing anyway", file=sys.stderr)
+        period = 1.0 / args.rate
+        start = time.monotonic()
+        for i in range(args.count):
+            if i:
+                time.sleep(max(0.0, start + i * period - time.monotonic()))  # pacing at --rate
+            pub.put(msg)
+        print(f"published {args.count} {row.msgtype} on {pub.key}", file=sys.stderr)
+    return 0

@@ -1,0 +1,93 @@
+"""Builders and readers for the standard messages the services exchange (stamps, headers, poses, twists)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from mjnav.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
+from mjnav.msgs.codec import msg_class
+
+_NS_PER_S = 1_000_000_000
+
+
+def time_msg(t_s: float) -> Any:
+    """builtin_interfaces/Time for ``t_s`` seconds (non-negative, rounded to the nanosecond)."""
+    if not (math.isfinite(t_s) and t_s >= 0.0):
+        raise ValueError(f"a stamp needs a finite, non-negative time, got {t_s}")
+    ns = round(t_s * _NS_PER_S)
+    return msg_class("builtin_interfaces/msg/Time")(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
+
+
+def seconds(stamp: Any) -> float:
+    """Seconds of a builtin_interfaces/Time."""
+    return float(stamp.sec) + float(stamp.nanosec) / 1e9
+
+
+def header(t_s: float, frame_id: str) -> Any:
+    """std_msgs/Header stamped ``t_s`` (sim seconds) in ``frame_id``."""
+    return msg_class("std_msgs/msg/Header")(stamp=time_msg(t_s), frame_id=frame_id)
+
+
+def clock(t_s: float) -> Any:
+    """rosgraph_msgs/Clock at ``t_s`` seconds."""
+    return msg_class("rosgraph_msgs/msg/Clock")(clock=time_msg(t_s))
+
+
+def pose_msg(pose: Pose2D, z_m: float = 0.0) -> Any:
+    """geometry_msgs/Pose of a planar pose (yaw about +z)."""
+    qx, qy, qz, qw = yaw_to_quaternion(pose.theta)
+    return msg_class("geometry_msgs/msg/Pose")(
+        position=msg_class("geometry_msgs/msg/Point")(x=pose.x, y=pose.y, z=z_m),
+        orientation=msg_class("geometry_msgs/msg/Quaternion")(x=qx, y=qy, z=qz, w=qw),
+    )
+
+
+def pose_stamped(t_s: float, frame_id: str, pose: Pose2D) -> Any:
+    """geometry_msgs/PoseStamped of a planar pose."""
+    return msg_class("geometry_msgs/msg/PoseStamped")(header=header(t_s, frame_id), pose=pose_msg(pose))
+
+
+def pose2d(pose: Any) -> Pose2D:
+    """Planar pose (x, y, yaw) of a geometry_msgs/Pose; z, roll and pitch are dropped."""
+    q = pose.orientation
+    return Pose2D(pose.position.x, pose.position.y, quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
+def twist(v_mps: float, omega_radps: float) -> Any:
+    """geometry_msgs/Twist with forward speed ``v_mps`` and yaw rate ``omega_radps``."""
+    vec = msg_class("geometry_msgs/msg/Vector3")
+    return msg_class("geometry_msgs/msg/Twist")(
+        linear=vec(x=v_mps, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=omega_radps)
+    )
+
+
+def odometry(
+    t_s: float,
+    pose: Pose2D,
+    v_mps: float,
+    omega_radps: float,
+    *,
+    frame_id: str = "odom",
+    child_frame_id: str = "base_link",
+    pose_variance: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    twist_variance: tuple[float, float] = (0.0, 0.0),
+) -> Any:
+    """nav_msgs/Odometry: planar pose in ``frame_id`` and body twist (v, ω) in ``child_frame_id``.
+
+    Args:
+        pose_variance: variances of x (m²), y (m²) and yaw (rad²) placed on the 6×6 covariance diagonal.
+        twist_variance: variances of v (m²/s²) and ω (rad²/s²).
+    """
+    pose_cov = np.zeros(36)
+    pose_cov[[0, 7, 35]] = pose_variance
+    twist_cov = np.zeros(36)
+    twist_cov[[0, 35]] = twist_variance
+    return msg_class("nav_msgs/msg/Odometry")(
+        header=header(t_s, frame_id),
+        child_frame_id=child_frame_id,
+        pose=msg_class("geometry_msgs/msg/PoseWithCovariance")(pose=pose_msg(pose), covariance=pose_cov),
+        twist=msg_class("geometry_msgs/msg/TwistWithCovariance")(twist=twist(v_mps, omega_radps), covariance=twist_cov),
+    )

@@ -1,0 +1,245 @@
+"""``mjnav up``: an in-process Zenoh router plus every stack service as a supervised child process.
+
+The router listens on ``tcp/127.0.0.1:<port>``; each service runs as ``python -m mjnav run <name>`` connected to
+it, with its output prefixed ``[name]``. A service that exits on its own is restarted (bounded by its
+``restarts`` in the stack file, with exponential back-off). On SIGINT/SIGTERM, or after ``duration_s``, the
+services are stopped in reverse start order (SIGTERM, then SIGKILL after a grace period) and the launcher
+returns 0; a second signal kills everything at once.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from types import FrameType
+from typing import IO
+
+from mjnav.bus import Bus, BusConfig
+from mjnav.runtime.stack import ServiceSpec, Stack
+
+log = logging.getLogger("mjnav.up")
+
+#: Seconds a service gets to stop after SIGTERM before it is killed.
+STOP_GRACE_S = 5.0
+#: First restart delay; doubles with every restart of the same service.
+RESTART_BACKOFF_S = 0.5
+
+
+@dataclass
+class _Child:
+    spec: ServiceSpec
+    proc: subprocess.Popen[str] | None = None
+    restarts: int = 0
+    restart_at: float | None = None
+    gave_up: bool = False
+    pumps: list[threading.Thread] = field(default_factory=list)
+
+
+class Launcher:
+    """Supervises the router and the services of one stack.
+
+    Args:
+        stack: the stack definition.
+        only: service names to run (None = all).
+        namespace: robot namespace (default: the stack's).
+        port: router port on 127.0.0.1.
+        duration_s: stop after this many wall seconds (None = until a signal).
+        overrides: per-service ``--set`` values, ``{"sim": ["world=maze"]}``.
+        extra_args: per-service extra command-line arguments for ``mjnav run``.
+        out: where prefixed child output goes (default stdout).
+    """
+
+    def __init__(
+        self,
+        stack: Stack,
+        *,
+        only: Sequence[str] | None = None,
+        namespace: str | None = None,
+        port: int = 7447,
+        duration_s: float | None = None,
+        overrides: dict[str, list[str]] | None = None,
+        extra_env: dict[str, str] | None = None,
+        out: IO[str] | None = None,
+    ) -> None:
+        self.stack = stack
+        self.specs = stack.select(list(only) if only else None)
+        self.namespace = namespace or stack.namespace
+        self.port = port
+        self.duration_s = duration_s
+        self.overrides = overrides or {}
+        self.extra_env = extra_env or {}
+        self.out = out or sys.stdout
+        self.children = [_Child(spec) for spec in self.specs]
+        self.stop_event = threading.Event()
+        self._out_lock = threading.Lock()
+        self._signals = 0
+        self._alive: set[str] = set()
+
+    @property
+    def endpoint(self) -> str:
+        """The router endpoint services connect to."""
+        return f"tcp/127.0.0.1:{self.port}"
+
+    # ------------------------------------------------------------------------------------------- child process
+
+    def _command(self, spec: ServiceSpec) -> list[str]:
+        cmd = [
+            sys.executable,
+            "-m",
+            "mjnav",
+            "run",
+            spec.name,
+            "--stack",
+            str(self.stack.path),
+            "--ns",
+            self.namespace,
+            "--mode",
+            "peer",
+            "--connect",
+            self.endpoint,
+        ]
+        for item in self.overrides.get(spec.name, []):
+            cmd += ["--set", item]
+        return cmd
+
+    def _env(self) -> dict[str, str]:
+        env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}
+        env["PYTHONUNBUFFERED"] = "1"
+        env.update(self.extra_env)
+        return env
+
+    def _start(self, child: _Child) -> None:
+        proc = subprocess.Popen(
+            self._command(child.spec),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            bufsize=1,
+            env=self._env(),
+            start_new_session=True,  # Ctrl-C reaches the launcher only; it stops the services in order
+        )
+        child.proc = proc
+        pump = threading.Thread(target=self._pump, args=(child.spec.name, proc), daemon=True)
+        pump.start()
+        child.pumps.append(pump)
+        log.info("started %s (pid %d)", child.spec.name, proc.pid)
+
+    def _pump(self, name: str, proc: subprocess.Popen[str]) -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            with self._out_lock:
+                self.out.write(f"[{name}] {line if line.endswith(chr(10)) else line + chr(10)}")
+                self.out.flush()
+
+    def _stop_child(self, child: _Child) -> None:
+        proc = child.proc
+        if proc is None or proc.poll() is not None:
+            return
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(STOP_GRACE_S)
+        except subprocess.TimeoutExpired:
+            log.warning("%s did not stop within %.0f s: killing it", child.spec.name, STOP_GRACE_S)
+            proc.kill()
+            proc.wait()
+        for pump in child.pumps:
+            pump.join(1.0)
+        log.info("stopped %s (exit code %s)", child.spec.name, proc.returncode)
+
+    # ------------------------------------------------------------------------------------------- supervision
+
+    def _supervise(self, child: _Child) -> None:
+        proc = child.proc
+        now = time.monotonic()
+        if child.restart_at is not None:
+            if now >= child.restart_at:
+                child.restart_at = None
+                self._start(child)
+            return
+        if proc is None or child.gave_up or proc.poll() is None:
+            return
+        code = proc.returncode
+        if child.restarts >= child.spec.restarts:
+            log.error(
+                "%s exited with code %s; %d restart(s) used up, giving up",
+                child.spec.name,
+                code,
+                child.restarts,
+            )
+            child.gave_up = True
+            return
+        delay = RESTART_BACKOFF_S * 2**child.restarts
+        child.restarts += 1
+        log.warning(
+            "%s exited with code %s; restarting in %.1f s (restart %d of %d)",
+            child.spec.name,
+            code,
+            delay,
+            child.restarts,
+            child.spec.restarts,
+        )
+        child.restart_at = now + delay
+
+    def _on_alive(self, service: str, alive: bool) -> None:
+        if alive:
+            self._alive.add(service)
+            if all(c.spec.name in self._alive for c in self.children):
+                log.info(
+                    "all %d service(s) alive on %s: %s",
+                    len(self.children),
+                    self.endpoint,
+                    ", ".join(c.spec.name for c in self.children),
+                )
+        else:
+            self._alive.discard(service)
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self._signals += 1
+        if self._signals > 1:
+            log.warning("second %s: killing every service now", signal.Signals(signum).name)
+            for child in self.children:
+                if child.proc is not None and child.proc.poll() is None:
+                    child.proc.kill()
+            os._exit(128 + signum)
+        log.info("%s: stopping the stack", signal.Signals(signum).name)
+        self.stop_event.set()
+
+    def run(self, *, install_signals: bool = True) -> int:
+        """Start the router and the services, supervise until stopped; returns the exit code.
+
+        0 after a requested stop (signal or duration) when no service had to be given up, 1 otherwise.
+        """
+        if install_signals:
+            signal.signal(signal.SIGINT, self._on_signal)
+            signal.signal(signal.SIGTERM, self._on_signal)
+        router = Bus.open(BusConfig(mode="router", connect=(), listen=(self.endpoint,)), self.namespace)
+        log.info("zenoh router on %s; namespace %s", self.endpoint, self.namespace)
+        deadline = None if self.duration_s is None else time.monotonic() + self.duration_s
+        try:
+            router.watch_alive(self._on_alive)
+            for child in self.children:
+                self._start(child)
+            while not self.stop_event.is_set():
+                if deadline is not None and time.monotonic() >= deadline:
+                    log.info("duration of %.1f s reached: stopping the stack", self.duration_s)
+                    break
+                for child in self.children:
+                    self._supervise(child)
+                self.stop_event.wait(0.1)
+        finally:
+            for child in reversed(self.children):
+                self._stop_child(child)
+            router.close()
+        failed = [c.spec.name for c in self.children if c.gave_up]
+        if failed:
+            log.error("service(s) given up after repeated crashes: %s", ", ".join(failed))
+            return 1
+        return 0

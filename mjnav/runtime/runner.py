@@ -1,0 +1,280 @@
+"""Runs one service: signals, the Zenoh session, the rate loop, liveliness and the status topic.
+
+The loop steps the service at ``config.rate_hz`` on sim time (the ``clock`` topic; the service waits for the first
+clock message) or on wall time. A period that passes without a step — because ``step`` took too long or the
+clock jumped — counts as an overrun. Every second (wall time) a ``mjnav_msgs/ServiceStatus`` goes out on
+``<ns>/status/<service>``. SIGINT/SIGTERM end the loop cleanly (deactivate, final status, session closed);
+a second signal exits at once.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from types import FrameType
+from typing import Any, Protocol
+
+from mjnav.bus import Bus, BusConfig
+from mjnav.msgs import msg_class, ros
+from mjnav.runtime.config import config_to_dict
+from mjnav.runtime.service import Service
+
+#: Wall seconds between status messages.
+STATUS_PERIOD_S = 1.0
+#: How long blocking waits sleep at most before re-checking for a stop request.
+_POLL_S = 0.1
+#: Tolerance on tick times, so that accumulated float error never defers a step to the next clock message.
+_TICK_EPS_S = 1e-9
+
+_STATE = {"unconfigured": 0, "inactive": 1, "active": 2, "finalized": 3, "error": 4}
+
+
+class StopRequested(Exception):
+    """Raised inside waits when the runner was asked to stop."""
+
+
+class _Stopper(Protocol):
+    def is_set(self) -> bool: ...
+
+    def wait(self, timeout: float) -> bool: ...
+
+
+class _WallClock:
+    def __init__(self) -> None:
+        self._t0 = time.monotonic()
+
+    def now(self) -> float:
+        return time.monotonic() - self._t0
+
+    def wait_until(self, t: float, stop: _Stopper) -> float:
+        while True:
+            now = self.now()
+            if now >= t:
+                return now
+            if stop.wait(min(t - now, _POLL_S)):
+                raise StopRequested
+
+
+class _SimClock:
+    """Sim time from the ``clock`` topic; waits are woken by every clock message."""
+
+    def __init__(self, bus: Bus) -> None:
+        self._cond = threading.Condition()
+        self._now = math.nan
+        self._sub = bus.subscribe("clock", callback=self._on_clock)
+
+    def _on_clock(self, msg: Any) -> None:
+        t = ros.seconds(msg.clock)
+        with self._cond:
+            self._now = t
+            self._cond.notify_all()
+
+    def now(self) -> float:
+        with self._cond:
+            return self._now
+
+    def wait_until(self, t: float, stop: _Stopper) -> float:
+        with self._cond:
+            while not (self._now >= t):  # also loops while no clock arrived yet (NaN)
+                if stop.is_set():
+                    raise StopRequested
+                self._cond.wait(_POLL_S)
+            return self._now
+
+
+@dataclass
+class LoopStats:
+    """Loop statistics reported in the status message."""
+
+    steps: int = 0
+    overruns: int = 0
+    step_errors: int = 0
+    step_time_sum_s: float = 0.0
+    step_time_max_s: float = 0.0
+    period_steps: int = 0
+    period_start: float = math.nan
+    last_error: str = ""
+
+
+class ServiceRunner:
+    """Owns the process-level concerns of one service.
+
+    Args:
+        service_cls: the :class:`Service` subclass.
+        config: its validated config (must have ``rate_hz``).
+        bus_config: how to join Zenoh.
+        namespace: robot namespace.
+        name: service name (default ``service_cls.name``).
+        use_sim_time: override ``service_cls.uses_sim_time``.
+    """
+
+    def __init__(
+        self,
+        service_cls: type[Service[Any]],
+        config: Any,
+        bus_config: BusConfig,
+        namespace: str,
+        *,
+        name: str | None = None,
+        use_sim_time: bool | None = None,
+    ) -> None:
+        self.service_cls = service_cls
+        self.config = config
+        self.bus_config = bus_config
+        self.namespace = namespace
+        self.name = name or service_cls.name
+        self.use_sim_time = service_cls.uses_sim_time if use_sim_time is None else use_sim_time
+        self.log = logging.getLogger(f"mjnav.{self.name}")
+        self.stop_event = threading.Event()
+        self.stats = LoopStats()
+        self._state = "unconfigured"
+        self._started = time.monotonic()
+        self._signals = 0
+
+    # ---------------------------------------------------------------------------------------------- signals
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self._signals += 1
+        if self._signals > 1:
+            self.log.warning("second %s: exiting now", signal.Signals(signum).name)
+            os._exit(128 + signum)
+        self.log.info("%s: stopping", signal.Signals(signum).name)
+        self.stop_event.set()
+
+    def install_signal_handlers(self) -> None:
+        """SIGINT/SIGTERM request a clean stop; a second one forces exit (main thread only)."""
+        signal.signal(signal.SIGINT, self._on_signal)
+        signal.signal(signal.SIGTERM, self._on_signal)
+
+    # ---------------------------------------------------------------------------------------------- status
+
+    def _status_msg(self, bus: Bus, now: float) -> Any:
+        s = self.stats
+        span = now - s.period_start if math.isfinite(now) and math.isfinite(s.period_start) else 0.0
+        loop_rate = s.period_steps / span if span > 0 else 0.0
+        stamp = now if math.isfinite(now) and now >= 0 else 0.0
+        return msg_class("mjnav_msgs/msg/ServiceStatus")(
+            header=ros.header(stamp, ""),
+            service=self.name,
+            robot_namespace=self.namespace,
+            state=_STATE[self._state],
+            pid=os.getpid(),
+            uptime_s=time.monotonic() - self._started,
+            target_rate_hz=float(self.config.rate_hz),
+            loop_rate_hz=loop_rate,
+            step_mean_ms=1e3 * s.step_time_sum_s / s.steps if s.steps else 0.0,
+            step_max_ms=1e3 * s.step_time_max_s,
+            steps=s.steps,
+            overruns=s.overruns,
+            messages_received=bus.stats.received,
+            messages_rejected=bus.stats.rejected,
+            messages_published=bus.stats.published,
+            last_error=s.last_error or bus.stats.last_rejection,
+        )
+
+    # ---------------------------------------------------------------------------------------------- main
+
+    def run(self) -> int:
+        """Run until stopped; returns the process exit code (0 after a clean stop)."""
+        bus = Bus.open(self.bus_config, self.namespace)
+        try:
+            return self._run(bus)
+        finally:
+            bus.close()
+
+    def _run(self, bus: Bus) -> int:
+        status_pub = bus.publisher("status", service=self.name)
+        string = msg_class("std_msgs/msg/String")
+        bus.serve("config", lambda _req: string(data=json.dumps(config_to_dict(self.config))), service=self.name)
+        clock: _WallClock | _SimClock = _SimClock(bus) if self.use_sim_time else _WallClock()
+
+        service = self.service_cls(self.config, bus, self.log)
+        service.configure()
+        self._state = "inactive"
+        service.activate()
+        self._state = "active"
+        bus.declare_alive(self.name)
+        self.log.info(
+            "active: %.1f Hz on %s time, namespace %s",
+            self.config.rate_hz,
+            "sim" if self.use_sim_time else "wall",
+            self.namespace,
+        )
+        period = 1.0 / float(self.config.rate_hz)
+        next_status = time.monotonic()
+        next_tick = math.nan
+        waited_for_clock = False
+        try:
+            while not self.stop_event.is_set():
+                if time.monotonic() >= next_status:
+                    status_pub.put(self._status_msg(bus, clock.now()))
+                    self.stats.period_steps = 0
+                    self.stats.period_start = clock.now()
+                    next_status += STATUS_PERIOD_S
+                if math.isnan(next_tick):
+                    if math.isnan(clock.now()):
+                        if not waited_for_clock:
+                            self.log.info("waiting for the clock on %s", bus.key("clock"))
+                            waited_for_clock = True
+                        try:
+                            clock.wait_until(-math.inf, _StopAfter(self.stop_event, STATUS_PERIOD_S))
+                        except StopRequested:
+                            continue
+                    next_tick = clock.now()
+                try:
+                    now = clock.wait_until(next_tick - _TICK_EPS_S, _StopAfter(self.stop_event, STATUS_PERIOD_S))
+                except StopRequested:
+                    continue
+                missed = math.floor((now - next_tick) / period + _TICK_EPS_S)
+                if missed > 0:
+                    self.stats.overruns += missed
+                    next_tick = now
+                self._step(service, now)
+                next_tick += period
+        finally:
+            self._state = "finalized"
+            try:
+                service.deactivate()
+            finally:
+                status_pub.put(self._status_msg(bus, clock.now()))
+        self.log.info("stopped after %d steps", self.stats.steps)
+        return 0
+
+    def _step(self, service: Service[Any], now: float) -> None:
+        t0 = time.perf_counter()
+        try:
+            service.step(now)
+        except Exception as exc:
+            self.stats.step_errors += 1
+            self.stats.last_error = f"{type(exc).__name__}: {exc}"
+            if self.stats.step_errors <= 10 or self.stats.step_errors % 100 == 0:
+                self.log.exception("step failed (%d so far)", self.stats.step_errors)
+        dt = time.perf_counter() - t0
+        s = self.stats
+        s.steps += 1
+        s.period_steps += 1
+        s.step_time_sum_s += dt
+        s.step_time_max_s = max(s.step_time_max_s, dt)
+
+
+class _StopAfter:
+    """A stop flag that also trips after ``timeout_s`` wall seconds, so the loop can publish status while idle."""
+
+    def __init__(self, stop: threading.Event, timeout_s: float) -> None:
+        self._stop = stop
+        self._deadline = time.monotonic() + timeout_s
+
+    def is_set(self) -> bool:
+        return self._stop.is_set() or time.monotonic() >= self._deadline
+
+    def wait(self, timeout: float) -> bool:
+        remaining = self._deadline - time.monotonic()
+        if remaining <= 0:
+            return True
+        return self._stop.wait(min(timeout, remaining)) or time.monotonic() >= self._deadline

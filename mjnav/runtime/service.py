@@ -1,0 +1,52 @@
+"""The service shape every mjnav service follows: configure → activate → step(now) → deactivate.
+
+A service is a thin adapter between the bus and the algorithm library. It gets a validated config dataclass
+(units in field names, a ``rate_hz`` field for its loop), a :class:`~mjnav.bus.Bus` for topics, and a logger. It
+owns no threads, signals, sessions or timers: the runtime (:mod:`mjnav.runtime.runner`) calls ``step(now)`` at
+``config.rate_hz`` on sim time (the ``clock`` topic) or wall time, and publishes its status.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, ClassVar, Generic, TypeVar
+
+from mjnav.bus import Bus
+
+ConfigT = TypeVar("ConfigT")
+
+
+class Service(Generic[ConfigT]):
+    """Base class of a service.
+
+    Subclasses set ``name`` and ``config_class`` and override the lifecycle methods they need; ``step`` is
+    mandatory. Exceptions from ``configure``/``activate`` end the process (the launcher restarts it);
+    an exception from ``step`` is logged and counted, and the loop goes on.
+
+    Attributes:
+        name: the service name (key of its status topic and liveliness token).
+        config_class: the frozen dataclass its TOML config is validated into; must have ``rate_hz``.
+        uses_sim_time: step on the ``clock`` topic (True) or on wall time (False, e.g. the simulator itself).
+    """
+
+    name: ClassVar[str] = ""
+    config_class: ClassVar[type[Any]]
+    uses_sim_time: ClassVar[bool] = True
+
+    def __init__(self, config: ConfigT, bus: Bus, log: logging.Logger) -> None:
+        self.config = config
+        self.bus = bus
+        self.log = log
+
+    def configure(self) -> None:
+        """Declare publishers/subscriptions and load resources (maps, models)."""
+
+    def activate(self) -> None:
+        """Start acting: called once before the first ``step``."""
+
+    def step(self, now: float) -> None:
+        """One loop iteration at time ``now`` (seconds of sim time, or wall time since start)."""
+        raise NotImplementedError
+
+    def deactivate(self) -> None:
+        """Stop acting and release what ``activate``/``configure`` took (save files, stop actuators)."""

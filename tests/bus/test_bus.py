@@ -1,0 +1,131 @@
+"""Typed pub/sub, rejection of bad payloads, request/reply and liveliness over real Zenoh on loopback."""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable
+
+import pytest
+import zenoh
+
+from mjnav.bus import Bus, NoReply, RemoteError, cdr_encoding, wait_until
+from mjnav.geometry import Pose2D
+from mjnav.msgs import encode, from_dict, msg_class, ros
+
+Peer = Callable[..., Bus]
+
+
+def test_snapshot_topic_delivers_decoded_messages_and_keeps_the_newest(peer: Peer) -> None:
+    a, b = peer(), peer()
+    sub = b.subscribe("cmd_vel")
+    pub = a.publisher("cmd_vel")
+    assert pub.wait_for_subscribers(5.0)
+    for i in range(20):
+        pub.put(ros.twist(0.1 * i, -0.5))
+    last = sub.wait(5.0, lambda m: math.isclose(m.linear.x, 1.9))
+    assert last is not None and last.angular.z == -0.5
+    assert sub.take() is last and sub.take() is None  # take() hands out each newest message once
+    assert b.stats.rejected == 0 and a.stats.published == 20
+
+
+def test_event_topic_keeps_every_message_in_order(peer: Peer) -> None:
+    a, b = peer(), peer()
+    sub = b.subscribe("goal")
+    pub = a.publisher("goal")
+    assert pub.wait_for_subscribers(5.0)
+    for i in range(300):
+        pub.put(ros.pose_stamped(float(i), "map", Pose2D(float(i), 0.0, 0.0)))
+    assert sub.wait(10.0, lambda m: m.pose.position.x == 299.0) is not None
+    xs = [m.pose.position.x for m in sub.drain()]
+    assert xs == [float(i) for i in range(300)]
+    assert sub.drain() == []
+
+
+def test_bad_payloads_are_counted_and_logged_never_raised(peer: Peer, caplog: pytest.LogCaptureFixture) -> None:
+    a, b = peer(), peer()
+    sub = b.subscribe("cmd_vel")
+    pub = a.publisher("cmd_vel")
+    assert pub.wait_for_subscribers(5.0)
+    key = b.key("cmd_vel")
+    nan_twist = encode(from_dict("geometry_msgs/msg/Twist", {"angular": {"z": math.nan}}))
+    scan_bytes = encode(from_dict("sensor_msgs/msg/LaserScan", {"range_max": 5.0, "ranges": [1.0] * 10}))
+    with caplog.at_level(logging.WARNING, logger="mjnav.bus"):
+        a.session.put(key, b"not cdr at all")
+        a.session.put(key, nan_twist[:20])
+        a.session.put(key, nan_twist, encoding=cdr_encoding("geometry_msgs/msg/Twist"))
+        a.session.put(key, scan_bytes, encoding=cdr_encoding("sensor_msgs/msg/LaserScan"))
+        a.session.put(key, b"{}", encoding=zenoh.Encoding.APPLICATION_JSON)
+        assert wait_until(lambda: b.stats.rejected == 5, 5.0), b.stats
+        pub.put(ros.twist(0.3, 0.0))  # the subscription still works afterwards
+        assert sub.wait(5.0, lambda m: m.linear.x == 0.3) is not None
+    assert b.stats.rejected_by_key == {key: 5}
+    text = caplog.text
+    assert key in text and "is nan" in text and "wrong type sensor_msgs/msg/LaserScan" in text
+    assert "wrong encoding" in text and "encapsulation" in text
+
+
+def test_wildcard_subscription_keeps_the_newest_per_key(peer: Peer) -> None:
+    a, b = peer(), peer()
+    sub = b.subscribe("status", service="*")
+    status = msg_class("mjnav_msgs/msg/ServiceStatus")
+    pubs = {name: a.publisher("status", service=name) for name in ("sim", "planner")}
+    for pub in pubs.values():
+        assert pub.wait_for_subscribers(5.0)
+    for name, pub in pubs.items():
+        msg = from_dict("mjnav_msgs/msg/ServiceStatus", {"service": name, "steps": 7})
+        assert isinstance(msg, status)
+        pub.put(msg)
+    assert wait_until(lambda: len(sub.latest_by_key()) == 2, 5.0)
+    by_key = sub.latest_by_key()
+    assert by_key[b.key("status", "sim")].service == "sim"
+    assert by_key[b.key("status", "planner")].service == "planner"
+
+
+def test_request_reply(peer: Peer) -> None:
+    server, client = peer(), peer()
+    string = msg_class("std_msgs/msg/String")
+
+    def handler(req: object) -> object:
+        text = req.data  # type: ignore[attr-defined]
+        if text == "boom":
+            raise RuntimeError("exploded on purpose")
+        return string(data=text.upper())
+
+    server.serve("config", handler, service="echo")
+    server.declare_alive("echo")
+    assert wait_until(lambda: client.alive_services() == ["echo"], 5.0)
+    assert client.call("config", string(data="hello"), service="echo").data == "HELLO"
+    with pytest.raises(RemoteError, match="exploded on purpose"):
+        client.call("config", string(data="boom"), service="echo")
+    with pytest.raises(NoReply):
+        client.call("config", string(data="x"), service="nobody", timeout_s=0.5)
+
+
+def test_liveliness_appears_and_disappears(peer: Peer, router_endpoint: str) -> None:
+    watcher = peer()
+    events: list[tuple[str, bool]] = []
+    changed = threading.Event()
+
+    def on_change(service: str, alive: bool) -> None:
+        events.append((service, alive))
+        changed.set()
+
+    watcher.watch_alive(on_change)
+    other = peer()
+    other.declare_alive("mapper")
+    assert wait_until(lambda: ("mapper", True) in events, 5.0)
+    other.close()
+    assert wait_until(lambda: ("mapper", False) in events, 5.0)
+    assert changed.is_set()
+
+
+def test_namespaces_do_not_mix(peer: Peer) -> None:
+    a, b, c = peer("robot1"), peer("robot1"), peer("robot2")
+    sub1, sub2 = b.subscribe("cmd_vel"), c.subscribe("cmd_vel")
+    pub = a.publisher("cmd_vel")
+    assert pub.wait_for_subscribers(5.0)
+    pub.put(ros.twist(1.0, 0.0))
+    assert sub1.wait(5.0) is not None
+    assert sub2.latest() is None

@@ -1,0 +1,43 @@
+"""Layered bus configuration: defaults → file → flags → environment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from mjnav.bus import DEFAULT_ROUTER, BusConfig, BusConfigError, load_bus_config
+
+
+def test_defaults_stay_on_loopback_without_multicast() -> None:
+    cfg = load_bus_config(env={})
+    assert cfg == BusConfig()
+    assert cfg.connect == (DEFAULT_ROUTER,) and cfg.listen == ("tcp/127.0.0.1:0",)
+    assert cfg.multicast_scouting is False and cfg.mode == "peer"
+
+
+def test_layers_override_in_order(tmp_path: Path) -> None:
+    f = tmp_path / "bus.toml"
+    f.write_text('mode = "client"\nconnect = ["tcp/10.0.0.1:7447"]\nmulticast_scouting = true\n')
+    cfg = load_bus_config(config_file=f, env={})
+    assert (cfg.mode, cfg.connect, cfg.multicast_scouting) == ("client", ("tcp/10.0.0.1:7447",), True)
+    cfg = load_bus_config(config_file=f, connect=["tcp/127.0.0.1:9000"], env={})
+    assert cfg.connect == ("tcp/127.0.0.1:9000",) and cfg.mode == "client"
+    env = {"MJNAV_ZENOH_CONNECT": "tcp/127.0.0.1:1, tcp/127.0.0.1:2", "MJNAV_ZENOH_MODE": "peer"}
+    cfg = load_bus_config(config_file=f, connect=["tcp/127.0.0.1:9000"], mode="client", env=env)
+    assert cfg.connect == ("tcp/127.0.0.1:1", "tcp/127.0.0.1:2") and cfg.mode == "peer"
+    cfg = load_bus_config(env={"MJNAV_ZENOH_CONFIG": str(f)})
+    assert cfg.mode == "client"
+
+
+def test_bad_values_are_typed_errors(tmp_path: Path) -> None:
+    with pytest.raises(BusConfigError, match="mode"):
+        load_bus_config(mode="satellite", env={})
+    with pytest.raises(BusConfigError, match="endpoint"):
+        load_bus_config(connect=["127.0.0.1:7447"], env={})
+    bad = tmp_path / "bad.toml"
+    bad.write_text("conect = []\n")
+    with pytest.raises(BusConfigError, match="unknown key"):
+        load_bus_config(config_file=bad, env={})
+    with pytest.raises(BusConfigError, match="cannot read"):
+        load_bus_config(config_file=tmp_path / "missing.toml", env={})

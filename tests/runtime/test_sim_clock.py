@@ -1,0 +1,63 @@
+"""The rate loop on sim time: steps at the configured rate of the clock topic, counts overruns."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from mjnav.bus import Bus, BusConfig, wait_until
+from mjnav.msgs import ros
+from mjnav.runtime import Service
+from mjnav.runtime.runner import ServiceRunner
+
+STEPS: list[float] = []
+STEPPED = threading.Condition()
+
+
+@dataclass(frozen=True)
+class CountingConfig:
+    rate_hz: float = 10.0
+
+
+class Counting(Service[CountingConfig]):
+    name = "counting"
+    config_class = CountingConfig
+
+    def step(self, now: float) -> None:
+        with STEPPED:
+            STEPS.append(now)
+            STEPPED.notify_all()
+
+
+def _wait_steps(n: int) -> bool:
+    with STEPPED:
+        return STEPPED.wait_for(lambda: len(STEPS) >= n, timeout=5.0)
+
+
+def test_steps_follow_sim_time_and_count_overruns(peer: Callable[..., Bus], router_endpoint: str) -> None:
+    STEPS.clear()
+    runner = ServiceRunner(Counting, CountingConfig(), BusConfig(connect=(router_endpoint,)), "robot0")
+    thread = threading.Thread(target=runner.run)
+    thread.start()
+    try:
+        sim = peer()
+        clock = sim.publisher("clock")
+        assert clock.wait_for_subscribers(5.0)
+        assert wait_until(lambda: sim.alive_services() == ["counting"], 5.0)
+        ticks = [round(0.1 * i, 10) for i in range(11)]
+        for i, t in enumerate(ticks):
+            clock.put(ros.clock(t))
+            assert _wait_steps(i + 1), f"no step at sim time {t}"
+            clock.put(ros.clock(t + 0.05))  # between ticks: no step due
+        assert STEPS == ticks
+        assert runner.stats.overruns == 0
+        clock.put(ros.clock(1.55))  # the clock jumps: 1.1 … 1.5 are missed
+        assert _wait_steps(12)
+        assert STEPS[-1] == 1.55 and runner.stats.overruns == 4
+        clock.put(ros.clock(1.65))
+        assert _wait_steps(13) and STEPS[-1] == 1.65
+    finally:
+        runner.stop_event.set()
+        thread.join(10.0)
+    assert not thread.is_alive()
