@@ -1,0 +1,62 @@
+# mjnav: two commands for a fresh Debian machine with Python >= 3.11.
+#   make demo   set up, then run the product
+#   make test   set up, then lint, type-check and run every test
+# Set-up is idempotent: .venv is created or updated when pyproject.toml changes, and the Debian packages
+# needed for offscreen rendering are installed when missing (apt-get as root; otherwise the names are printed).
+
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.mjnav-installed
+# Offscreen rendering for MuJoCo: EGL (Mesa, software) or OSMesa.
+SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libosmesa6
+DEMO_DURATION ?= 20
+PYTEST_ARGS ?=
+
+.PHONY: demo test setup system-deps lint bench clean
+
+demo: setup
+	$(BIN)/mjnav up --headless --duration $(DEMO_DURATION)
+
+test: lint
+	$(BIN)/pytest $(PYTEST_ARGS)
+
+lint: setup
+	$(BIN)/ruff check mjnav tests benchmarks
+	$(BIN)/ruff format --check mjnav tests benchmarks
+	$(BIN)/mypy mjnav
+
+setup: system-deps $(STAMP)
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
+	  { echo "mjnav needs Python >= 3.11; $(PYTHON) is $$($(PYTHON) --version 2>&1). Use make PYTHON=python3.11"; exit 1; }
+	@if [ ! -x $(BIN)/python ]; then \
+	  $(PYTHON) -m venv $(VENV) 2>/dev/null || { \
+	    rm -rf $(VENV); \
+	    if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	      apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv && $(PYTHON) -m venv $(VENV); \
+	    else echo "cannot create a virtual environment: install the Debian package python3-venv"; exit 1; fi; }; \
+	fi
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev,bench]'
+	@touch $(STAMP)
+
+system-deps:
+	@if ! command -v dpkg >/dev/null; then echo "not a Debian system: make sure EGL or OSMesa is installed for rendering"; exit 0; fi; \
+	missing=""; for p in $(SYSTEM_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -z "$$missing" ]; then exit 0; fi; \
+	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	  echo "installing Debian packages:$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
+	else \
+	  echo "WARNING: offscreen rendering needs the Debian packages:$$missing"; \
+	  echo "         install them with: sudo apt-get install$$missing (rendering tests skip until then)"; \
+	fi
+
+bench: setup
+	@for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b --quick || exit 1; done
+
+clean:
+	rm -rf $(VENV) .mypy_cache .ruff_cache .pytest_cache
