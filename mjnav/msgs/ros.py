@@ -91,3 +91,85 @@ def odometry(
         pose=msg_class("geometry_msgs/msg/PoseWithCovariance")(pose=pose_msg(pose), covariance=pose_cov),
         twist=msg_class("geometry_msgs/msg/TwistWithCovariance")(twist=twist(v_mps, omega_radps), covariance=twist_cov),
     )
+
+
+def transform_stamped(t_s: float, parent_frame: str, child_frame: str, pose: Pose2D) -> Any:
+    """geometry_msgs/TransformStamped placing ``child_frame`` at ``pose`` in ``parent_frame``."""
+    qx, qy, qz, qw = yaw_to_quaternion(pose.theta)
+    return msg_class("geometry_msgs/msg/TransformStamped")(
+        header=header(t_s, parent_frame),
+        child_frame_id=child_frame,
+        transform=msg_class("geometry_msgs/msg/Transform")(
+            translation=msg_class("geometry_msgs/msg/Vector3")(x=pose.x, y=pose.y, z=0.0),
+            rotation=msg_class("geometry_msgs/msg/Quaternion")(x=qx, y=qy, z=qz, w=qw),
+        ),
+    )
+
+
+def tf_message(*transforms: Any) -> Any:
+    """tf2_msgs/TFMessage holding ``transforms`` (geometry_msgs/TransformStamped)."""
+    return msg_class("tf2_msgs/msg/TFMessage")(transforms=list(transforms))
+
+
+def imu(
+    t_s: float,
+    frame_id: str,
+    orientation_xyzw: Any,
+    angular_velocity_radps: Any,
+    linear_acceleration_mps2: Any,
+    *,
+    gyro_variance: float = 0.0,
+    accel_variance: float = 0.0,
+) -> Any:
+    """sensor_msgs/Imu; variances go on the covariance diagonals (orientation covariance left at 0)."""
+    vec = msg_class("geometry_msgs/msg/Vector3")
+    q = [float(v) for v in orientation_xyzw]
+    g = [float(v) for v in angular_velocity_radps]
+    a = [float(v) for v in linear_acceleration_mps2]
+    return msg_class("sensor_msgs/msg/Imu")(
+        header=header(t_s, frame_id),
+        orientation=msg_class("geometry_msgs/msg/Quaternion")(x=q[0], y=q[1], z=q[2], w=q[3]),
+        orientation_covariance=np.zeros(9),
+        angular_velocity=vec(x=g[0], y=g[1], z=g[2]),
+        angular_velocity_covariance=np.diag([gyro_variance] * 3).reshape(9),
+        linear_acceleration=vec(x=a[0], y=a[1], z=a[2]),
+        linear_acceleration_covariance=np.diag([accel_variance] * 3).reshape(9),
+    )
+
+
+def joint_state(t_s: float, names: Any, position_rad: Any, velocity_radps: Any) -> Any:
+    """sensor_msgs/JointState with positions and velocities (no efforts)."""
+    return msg_class("sensor_msgs/msg/JointState")(
+        header=header(t_s, ""),
+        name=list(names),
+        position=np.asarray(position_rad, dtype=np.float64),
+        velocity=np.asarray(velocity_radps, dtype=np.float64),
+        effort=np.zeros(0, dtype=np.float64),
+    )
+
+
+def laser_scan(
+    t_s: float,
+    frame_id: str,
+    *,
+    angle_min_rad: float,
+    angle_increment_rad: float,
+    scan_time_s: float,
+    range_min_m: float,
+    range_max_m: float,
+    ranges_m: Any,
+) -> Any:
+    """sensor_msgs/LaserScan; ``ranges_m`` keeps REP-117 values (+inf: no return, -inf: too close)."""
+    ranges = np.asarray(ranges_m, dtype=np.float32)
+    return msg_class("sensor_msgs/msg/LaserScan")(
+        header=header(t_s, frame_id),
+        angle_min=float(angle_min_rad),
+        angle_max=float(angle_min_rad + angle_increment_rad * (len(ranges) - 1)),
+        angle_increment=float(angle_increment_rad),
+        time_increment=0.0,
+        scan_time=float(scan_time_s),
+        range_min=float(range_min_m),
+        range_max=float(range_max_m),
+        ranges=ranges,
+        intensities=np.zeros(0, dtype=np.float32),
+    )

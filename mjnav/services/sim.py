@@ -1,0 +1,233 @@
+"""The sim service: the MuJoCo robot on the bus.
+
+Publishes ``clock``, ``scan``, ``odom`` (wheel odometry, drifting), ``imu``, ``joint_states``, ``tf``
+(``odom → base_link``) and ``ground_truth`` (``map → base_link``), all stamped in sim time, and drives the wheels
+from the newest ``cmd_vel``. The simulator's own watchdog zeroes the wheels when that command is older than
+``watchdog_timeout_s`` of sim time.
+
+Time: the service steps on wall time (it *is* the clock). Each step advances the simulation to
+``rtf × wall time since activation`` (``rtf = 0``: as fast as possible, one wall period of work per step), so
+every other service, stepping on the ``clock`` topic, runs at the same factor.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mjnav.bus import Bus
+from mjnav.geometry import Pose2D
+from mjnav.msgs import ros
+from mjnav.runtime import Service
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Sim service settings (``services/sim.toml``).
+
+    Attributes:
+        world: bundled world name (empty, rooms, maze, warehouse) or an MJCF path.
+        seed: seed of every noise source.
+        rtf: real-time factor; 0 runs as fast as the machine allows.
+        rate_hz: wall-time loop rate of the service.
+        clock_rate_hz: ``clock`` messages per sim second; also how often ``cmd_vel`` is applied.
+        odom_rate_hz: ``odom``, ``tf``, ``joint_states`` and ``ground_truth`` per sim second.
+        imu_rate_hz: ``imu`` per sim second.
+        watchdog_timeout_s: zero the wheels when the newest command is this old (sim seconds).
+        lidar_beams, lidar_rate_hz, lidar_range_min_m, lidar_range_max_m, lidar_noise_std_m: the lidar.
+        record_path: write an MP4 of the run here ("" = no recording).
+        record_fps: video frame rate (frames per sim second).
+        record_camera: ``top`` or ``follow``.
+    """
+
+    world: str = "rooms"
+    seed: int = 0
+    rtf: float = 1.0
+    rate_hz: float = 100.0
+    clock_rate_hz: float = 100.0
+    odom_rate_hz: float = 50.0
+    imu_rate_hz: float = 100.0
+    watchdog_timeout_s: float = 0.5
+    lidar_beams: int = 360
+    lidar_rate_hz: float = 10.0
+    lidar_range_min_m: float = 0.12
+    lidar_range_max_m: float = 12.0
+    lidar_noise_std_m: float = 0.01
+    record_path: str = ""
+    record_fps: float = 30.0
+    record_camera: str = "top"
+
+    def __post_init__(self) -> None:
+        if not self.rtf >= 0.0:
+            raise ValueError(f"rtf must be >= 0 (0 = as fast as possible), got {self.rtf}")
+        for name in ("clock_rate_hz", "odom_rate_hz", "imu_rate_hz", "watchdog_timeout_s", "record_fps"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.record_camera not in ("top", "follow"):
+            raise ValueError(f"record_camera must be 'top' or 'follow', got {self.record_camera!r}")
+
+
+class _Every:
+    """A sim-time schedule: due at 0, p, 2p, … (computed from the tick count, so no drift)."""
+
+    def __init__(self, rate_hz: float) -> None:
+        self.period = 1.0 / rate_hz
+        self.count = 0
+
+    @property
+    def next_t(self) -> float:
+        return self.count * self.period
+
+    def due(self, t: float) -> bool:
+        if t + 1e-9 >= self.next_t:
+            self.count = math.floor((t + 1e-9) / self.period) + 1
+            return True
+        return False
+
+
+class SimBridge:
+    """Moves a :class:`~mjnav.sim.Simulator` forward and connects it to the bus (used by the service and
+    by ``mjnav sim`` with the bus)."""
+
+    def __init__(self, sim: Any, bus: Bus, config: SimConfig) -> None:
+        self.sim = sim
+        self.config = config
+        self._cmd = bus.subscribe("cmd_vel")
+        self._pub = {
+            name: bus.publisher(name) for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "ground_truth")
+        }
+        self._clock = _Every(config.clock_rate_hz)
+        self._odom = _Every(config.odom_rate_hz)
+        self._imu = _Every(config.imu_rate_hz)
+        self._scan_time_s = 1.0 / config.lidar_rate_hz
+        self.commands_applied = 0
+
+    def advance(self, target_s: float, wall_deadline: float | None = None) -> None:
+        """Step the simulation up to sim time ``target_s``, publishing everything that falls due on the way.
+
+        Stops early when ``time.perf_counter()`` passes ``wall_deadline`` (used when running as fast as possible).
+        """
+        sim = self.sim
+        while True:
+            t = sim.time_s
+            self._publish_due(t)
+            if t >= target_s - 1e-9 or (wall_deadline is not None and time.perf_counter() >= wall_deadline):
+                return
+            sim.step_until(min(target_s, self._clock.next_t, self._odom.next_t, self._imu.next_t))
+
+    def _publish_due(self, t: float) -> None:
+        sim = self.sim
+        if self._clock.due(t):
+            cmd = self._cmd.take()
+            if cmd is not None:
+                sim.set_command(cmd.linear.x, cmd.angular.z)
+                self.commands_applied += 1
+            self._pub["clock"].put(ros.clock(t))
+        scan = sim.pop_scan()
+        if scan is not None:
+            cfg = scan.config
+            self._pub["scan"].put(
+                ros.laser_scan(
+                    scan.stamp_s,
+                    "laser",
+                    angle_min_rad=cfg.angle_min_rad,
+                    angle_increment_rad=cfg.angle_increment_rad,
+                    scan_time_s=self._scan_time_s,
+                    range_min_m=cfg.range_min_m,
+                    range_max_m=cfg.range_max_m,
+                    ranges_m=scan.ranges_m,
+                )
+            )
+        if self._odom.due(t):
+            est = sim.odometry()
+            stamp = est.stamp_s
+            self._pub["odom"].put(ros.odometry(stamp, est.pose, est.v_mps, est.omega_radps))
+            self._pub["tf"].put(ros.tf_message(ros.transform_stamped(stamp, "odom", "base_link", est.pose)))
+            wheels = sim.wheel_states()
+            self._pub["joint_states"].put(ros.joint_state(t, wheels.names, wheels.position_rad, wheels.velocity_radps))
+            self._pub["ground_truth"].put(ros.pose_stamped(t, "map", sim.ground_truth_pose()))
+        if self._imu.due(t):
+            reading = sim.imu()
+            self._pub["imu"].put(
+                ros.imu(
+                    t, "imu", reading.orientation_xyzw, reading.angular_velocity_radps, reading.linear_acceleration_mps2
+                )
+            )
+
+
+class SimService(Service[SimConfig]):
+    """Runs the simulator at ``rtf`` × wall time and bridges it to the bus."""
+
+    name = "sim"
+    config_class = SimConfig
+    uses_sim_time = False
+
+    def configure(self) -> None:
+        from mjnav.sim import LidarConfig, Recorder, Simulator
+
+        cfg = self.config
+        lidar = LidarConfig(
+            num_beams=cfg.lidar_beams,
+            rate_hz=cfg.lidar_rate_hz,
+            range_min_m=cfg.lidar_range_min_m,
+            range_max_m=cfg.lidar_range_max_m,
+            noise_std_m=cfg.lidar_noise_std_m,
+        )
+        self.sim = Simulator(cfg.world, seed=cfg.seed, lidar=lidar, watchdog_timeout_s=cfg.watchdog_timeout_s)
+        self.bridge = SimBridge(self.sim, self.bus, cfg)
+        self.recorder: Any = None
+        if cfg.record_path:
+            self.recorder = Recorder(
+                self.sim.model, self.sim.data, Path(cfg.record_path), fps=cfg.record_fps, camera=cfg.record_camera
+            )
+            self._frames = _Every(cfg.record_fps)
+        start: Pose2D = self.sim.start_pose
+        self.log.info(
+            "world %s, start (%.2f, %.2f, %.2f), rtf %s",
+            cfg.world,
+            start.x,
+            start.y,
+            start.theta,
+            cfg.rtf or "max",
+        )
+
+    def activate(self) -> None:
+        self._wall0 = time.monotonic()
+        self._last_report = self._wall0
+
+    def step(self, now: float) -> None:
+        cfg = self.config
+        if cfg.rtf > 0:
+            target = cfg.rtf * (time.monotonic() - self._wall0)
+            deadline = time.perf_counter() + 2.0 / cfg.rate_hz  # never block the loop for long
+            self._advance(target, deadline)
+        else:
+            self._advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
+        wall = time.monotonic()
+        if wall - self._last_report >= 10.0:
+            self._last_report = wall
+            self.log.info(
+                "sim time %.1f s, real-time factor %.2f, collisions %d",
+                self.sim.time_s,
+                self.sim.time_s / max(wall - self._wall0, 1e-9),
+                self.sim.collisions,
+            )
+
+    def _advance(self, target_s: float, deadline: float) -> None:
+        if self.recorder is None:
+            self.bridge.advance(target_s, deadline)
+            return
+        while self.sim.time_s < target_s - 1e-9 and time.perf_counter() < deadline:
+            if self._frames.due(self.sim.time_s):
+                self.recorder.capture()
+            self.bridge.advance(min(target_s, self._frames.next_t), deadline)
+
+    def deactivate(self) -> None:
+        self.sim.set_command(0.0, 0.0)
+        if self.recorder is not None:
+            self.recorder.close()
+            self.log.info("wrote %d frames to %s", self.recorder.frames, self.config.record_path)
+        self.log.info("stopped at sim time %.2f s with %d collision(s)", self.sim.time_s, self.sim.collisions)

@@ -1,0 +1,101 @@
+"""The sim service as a real process on loopback Zenoh: topics, stamps, cmd_vel drives the wheels, watchdog."""
+
+from __future__ import annotations
+
+import math
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Callable, Iterator
+
+import numpy as np
+import pytest
+
+from mjnav.bus import Bus
+from mjnav.msgs import ros
+from tests.conftest import REPO
+
+
+@pytest.fixture
+def sim_process(router_endpoint: str) -> Iterator[subprocess.Popen[str]]:
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "mjnav",
+            "run",
+            "sim",
+            "--connect",
+            router_endpoint,
+            "--set",
+            "world=empty",
+            "--set",
+            "rtf=1.0",
+        ],
+        cwd=REPO,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+    yield proc
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    proc.communicate(timeout=10)
+
+
+def test_sim_publishes_sensors_and_obeys_cmd_vel_with_a_watchdog(
+    sim_process: subprocess.Popen[str], peer: Callable[..., Bus]
+) -> None:
+    me = peer()
+    clock = me.subscribe("clock")
+    scan = me.subscribe("scan")
+    truth = me.subscribe("ground_truth")
+    subs = {name: me.subscribe(name) for name in ("odom", "imu", "joint_states", "tf")}
+    first = clock.wait(60.0)
+    assert first is not None, "no clock from the sim"
+
+    s = scan.wait(10.0)
+    assert s is not None and len(s.ranges) == 360 and s.header.frame_id == "laser"
+    assert s.range_max == pytest.approx(12.0) and math.isclose(s.angle_increment, 2 * math.pi / 360, rel_tol=1e-6)
+    for name, sub in subs.items():
+        assert sub.wait(10.0) is not None, f"no {name}"
+    assert subs["tf"].latest().transforms[0].child_frame_id == "base_link"
+
+    start = truth.wait(10.0)
+    x0 = start.pose.position.x
+    cmd = me.publisher("cmd_vel")
+    assert cmd.wait_for_subscribers(10.0)
+    stop = threading.Event()
+
+    def drive() -> None:
+        while not stop.wait(0.05):  # a 20 Hz teleop source
+            cmd.put(ros.twist(0.3, 0.0))
+
+    driver = threading.Thread(target=drive)
+    driver.start()
+    t_start = ros.seconds(clock.latest().clock)
+    try:
+        assert clock.wait(30.0, lambda c: ros.seconds(c.clock) >= t_start + 2.0) is not None
+    finally:
+        stop.set()
+        driver.join()
+    moving = truth.latest()
+    assert moving.pose.position.x - x0 > 0.3, "the robot did not drive forward"
+    assert subs["odom"].latest().twist.twist.linear.x == pytest.approx(0.3, rel=0.15)
+
+    # No more commands: after the 0.5 s watchdog the robot must stand still.
+    t_last = ros.seconds(clock.latest().clock)
+    assert clock.wait(30.0, lambda c: ros.seconds(c.clock) >= t_last + 1.0) is not None
+    p1 = truth.latest().pose.position
+    t1 = ros.seconds(clock.latest().clock)
+    assert clock.wait(30.0, lambda c: ros.seconds(c.clock) >= t1 + 0.5) is not None
+    p2 = truth.latest().pose.position
+    assert np.hypot(p2.x - p1.x, p2.y - p1.y) < 0.01, "the watchdog did not stop the wheels"
+
+    stamps = [ros.seconds(c) for c in (first.clock, clock.latest().clock)]
+    assert stamps[1] > stamps[0]
