@@ -1,0 +1,164 @@
+"""Inflation costmap, clearance and C-space masks: hand-worked Nav2-style costs and bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mjnav.mapping import (
+    INSCRIBED_COST,
+    LETHAL_COST,
+    CellState,
+    InvalidGridError,
+    InvalidParameterError,
+    clearance_m,
+    inflate_mask,
+    inflation_costmap,
+)
+
+
+def single_obstacle(n: int = 9) -> np.ndarray:
+    occ = np.zeros((n, n), dtype=np.int8)
+    occ[n // 2, n // 2] = 100
+    return occ
+
+
+def test_costmap_hand_worked_single_obstacle() -> None:
+    # res 0.5 m, r = 0.5 m, R = 1.5 m, s = 1/m: cost = floor(98·exp(−(d − 0.5))) for 0.5 < d ≤ 1.5.
+    # d = √0.5 → 79, 1 → 59, √1.25 → 52, √2 → 39, 1.5 → 36; d = 0.5 → 99 (inscribed); d = √2.5 > 1.5 → 0.
+    cost = inflation_costmap(
+        single_obstacle(), 0.5, robot_radius_m=0.5, inflation_radius_m=1.5, cost_scaling_factor=1.0
+    )
+    assert cost.dtype == np.int8
+    expected = np.array(
+        [
+            [0, 0, 0, 0, 0, 0, 0, 0, 0],
+            [0, 0, 0, 0, 36, 0, 0, 0, 0],
+            [0, 0, 39, 52, 59, 52, 39, 0, 0],
+            [0, 0, 52, 79, 99, 79, 52, 0, 0],
+            [0, 36, 59, 99, 100, 99, 59, 36, 0],
+            [0, 0, 52, 79, 99, 79, 52, 0, 0],
+            [0, 0, 39, 52, 59, 52, 39, 0, 0],
+            [0, 0, 0, 0, 36, 0, 0, 0, 0],
+            [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        ],
+        dtype=np.int8,
+    )
+    np.testing.assert_array_equal(cost, expected)
+    assert LETHAL_COST == 100
+    assert INSCRIBED_COST == CellState.INFLATED == 99
+
+
+def test_costmap_decays_monotonically_and_faster_with_larger_scaling() -> None:
+    occ = np.zeros((1, 40), dtype=np.int8)
+    occ[0, 0] = 100
+    slow = inflation_costmap(occ, 0.05, 0.2, 1.5, cost_scaling_factor=1.0)[0]
+    fast = inflation_costmap(occ, 0.05, 0.2, 1.5, cost_scaling_factor=10.0)[0]
+    assert slow[0] == 100
+    assert np.all(slow[1:5] == 99)  # d = 0.05..0.20 ≤ r
+    assert np.all(np.diff(slow[4:]) <= 0)
+    assert np.all(fast[5:] <= slow[5:])
+    # d = 0.25 m: 98·exp(−10·0.05) = 59.4 → 59.
+    assert fast[5] == 59
+    assert slow[31] == 0  # d = 1.55 m > R
+
+
+def test_unknown_cell_options() -> None:
+    occ = np.zeros((1, 12), dtype=np.int8)
+    occ[0, 0] = 100
+    occ[0, 1] = -1  # unknown, within the inscribed radius
+    occ[0, 9] = -1  # unknown, far away
+    keep = inflation_costmap(occ, 1.0, 1.0, 4.0, 1.0, unknown="unknown")
+    assert keep[0, 1] == 99  # Nav2: unknown within the inscribed radius takes the inscribed cost
+    assert keep[0, 9] == -1
+    assert keep[0, 2] == math.floor(98 * math.exp(-1.0))
+    free = inflation_costmap(occ, 1.0, 1.0, 4.0, 1.0, unknown="free")
+    assert free[0, 1] == 99
+    assert free[0, 9] == 0
+    lethal = inflation_costmap(occ, 1.0, 1.0, 4.0, 1.0, unknown="lethal")
+    assert lethal[0, 9] == 100
+    assert lethal[0, 8] == 99
+    assert lethal[0, 10] == 99
+    assert lethal[0, 7] == math.floor(98 * math.exp(-1.0))
+
+
+def test_occupied_threshold_and_no_obstacles() -> None:
+    occ = np.array([[0, 64, 65, 0, 0, 0]], dtype=np.int8)
+    cost = inflation_costmap(occ, 1.0, 0.0, 0.0)
+    np.testing.assert_array_equal(cost, [[0, 0, 100, 0, 0, 0]])
+    cost = inflation_costmap(occ, 1.0, 0.0, 0.0, occupied_threshold=60)
+    np.testing.assert_array_equal(cost, [[0, 100, 100, 0, 0, 0]])
+    np.testing.assert_array_equal(inflation_costmap(occ >= 65, 1.0, 0.0, 0.0), [[0, 0, 100, 0, 0, 0]])
+    empty = np.zeros((3, 4), dtype=np.int8)
+    np.testing.assert_array_equal(inflation_costmap(empty, 0.1, 0.3, 1.0), np.zeros((3, 4)))
+
+
+def test_clearance_euclidean_and_chebyshev() -> None:
+    obs = np.zeros((5, 6), dtype=bool)
+    obs[1, 1] = True
+    d = clearance_m(obs, 0.5)
+    assert d[1, 1] == 0.0
+    assert d[1, 4] == pytest.approx(1.5)
+    assert d[4, 5] == pytest.approx(0.5 * math.hypot(3, 4))
+    c = clearance_m(obs, 0.5, norm="chebyshev")
+    assert c[4, 5] == pytest.approx(0.5 * 4)
+    assert c[3, 3] == pytest.approx(1.0)
+    assert np.all(np.isinf(clearance_m(np.zeros((2, 3), dtype=bool), 0.1)))
+    assert np.all(np.isinf(clearance_m(np.zeros((2, 3), dtype=bool), 0.1, norm="chebyshev")))
+
+
+def test_inflate_mask_is_a_disc() -> None:
+    obs = np.zeros((7, 7), dtype=bool)
+    obs[3, 3] = True
+    m = inflate_mask(obs, 0.1, 0.2)
+    assert m.sum() == 13  # |Δ|² ≤ 4: the 13 lattice points of a radius-2 disc
+    assert m[3, 1] and m[2, 2] and not m[1, 1]
+
+
+@pytest.mark.parametrize(
+    ("occupancy", "kwargs"),
+    [
+        (np.zeros((3, 3)), {}),  # float dtype
+        (np.zeros((0, 3), dtype=np.int8), {}),
+        (np.zeros(9, dtype=np.int8), {}),
+        (np.full((3, 3), 101, dtype=np.int16), {}),
+        (np.full((3, 3), -2, dtype=np.int8), {}),
+    ],
+)
+def test_costmap_rejects_bad_grids(occupancy: np.ndarray, kwargs: dict) -> None:
+    with pytest.raises(InvalidGridError):
+        inflation_costmap(occupancy, 0.1, 0.2, 0.5, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"resolution_m": 0.0},
+        {"resolution_m": float("nan")},
+        {"robot_radius_m": -0.1},
+        {"inflation_radius_m": 0.1},  # smaller than the robot radius
+        {"cost_scaling_factor": float("inf")},
+        {"unknown": "maybe"},
+        {"occupied_threshold": 0},
+        {"occupied_threshold": 50.0},
+    ],
+)
+def test_costmap_rejects_bad_parameters(kwargs: dict) -> None:
+    args = {"resolution_m": 0.1, "robot_radius_m": 0.2, "inflation_radius_m": 0.5} | kwargs
+    with pytest.raises(InvalidParameterError):
+        inflation_costmap(single_obstacle(), **args)
+
+
+def test_clearance_rejects_bad_input() -> None:
+    with pytest.raises(InvalidGridError):
+        clearance_m(np.zeros((3, 3), dtype=np.int8), 0.1)
+    with pytest.raises(InvalidGridError):
+        clearance_m(np.zeros((0, 0), dtype=bool), 0.1)
+    with pytest.raises(InvalidParameterError):
+        clearance_m(np.zeros((3, 3), dtype=bool), -1.0)
+    with pytest.raises(InvalidParameterError):
+        clearance_m(np.zeros((3, 3), dtype=bool), 0.1, norm="manhattan")  # type: ignore[arg-type]
+    with pytest.raises(InvalidParameterError):
+        inflate_mask(np.zeros((3, 3), dtype=bool), 0.1, float("nan"))

@@ -1,0 +1,186 @@
+"""ROS map_server files: write/read round trips, hand-made images in every mode, and malformed files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from mjnav.mapping import (
+    InvalidGridError,
+    InvalidParameterError,
+    MapFileError,
+    OccupancyGrid,
+    RosMap,
+    read_ros_map,
+    write_ros_map,
+)
+
+
+def test_write_then_read_round_trip(tmp_path: Path) -> None:
+    occ = np.array([[0, 100, -1, 0], [100, 0, 0, -1], [-1, -1, 100, 100]], dtype=np.int8)
+    image = write_ros_map(tmp_path / "office.yaml", occ, 0.05, (-1.5, 2.25, 0.1))
+    assert image == tmp_path / "office.pgm"
+    m = read_ros_map(tmp_path / "office.yaml")
+    np.testing.assert_array_equal(m.occupancy, occ)
+    assert m.occupancy.dtype == np.int8
+    assert m.resolution_m == 0.05
+    assert m.origin_m == (-1.5, 2.25, 0.1)
+    assert (m.occupied_thresh, m.free_thresh, m.negate, m.mode) == (0.65, 0.196, False, "trinary")
+    assert m.image_path == image
+    assert (m.width_cells, m.height_cells) == (4, 3)
+    np.testing.assert_array_equal(m.occupied_mask(), occ == 100)
+    np.testing.assert_array_equal(m.occupied_mask(unknown_is_occupied=True), occ != 0)
+    np.testing.assert_array_equal(m.free_mask(), occ == 0)
+
+
+def test_written_files_follow_map_saver_conventions(tmp_path: Path) -> None:
+    occ = np.array([[0, 100, -1], [20, 21, 65]], dtype=np.int8)  # row 0 = lowest y
+    write_ros_map(tmp_path / "m.yaml", occ, 0.1, (1.0, 2.0))
+    doc = yaml.safe_load((tmp_path / "m.yaml").read_text())
+    assert doc == {
+        "image": "m.pgm",
+        "mode": "trinary",
+        "resolution": 0.1,
+        "origin": [1.0, 2.0, 0.0],
+        "negate": 0,
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.196,
+    }
+    raw = (tmp_path / "m.pgm").read_bytes()
+    assert raw.startswith(b"P5\n")
+    assert raw.endswith(b"3 2\n255\n" + bytes([254, 205, 0, 254, 0, 205]))
+    # Image top row = map row 1 (highest y): 20 ≤ rint(100·0.196) = 20 → free (254); 21 → unknown (205);
+    # 65 ≥ rint(100·0.65) → occupied (0). Bottom row = map row 0: 0 → 254, 100 → 0, −1 → 205.
+
+
+def test_read_hand_made_ascii_pgm_with_comments_and_negate(tmp_path: Path) -> None:
+    (tmp_path / "a.pgm").write_text("P2\n# a comment\n3 2 # inline\n10\n0 5 10\n2 # x\n 8 9\n")
+    (tmp_path / "a.yaml").write_text(
+        "image: a.pgm\nresolution: 0.5\norigin: [0, 0, 0]\nnegate: 1\noccupied_thresh: 0.7\nfree_thresh: 0.3\n"
+    )
+    m = read_ros_map(tmp_path / "a.yaml")
+    # negate: occ = shade = v/10. Top image row (0, .5, 1) → map row 1: 0 < .3 free, .5 unknown, 1 > .7
+    # occupied. Bottom image row (.2, .8, .9) → map row 0: free, occupied, occupied.
+    np.testing.assert_array_equal(m.occupancy, [[0, 100, 100], [0, -1, 100]])
+    assert m.mode == "trinary"
+    assert m.negate
+
+
+def test_read_scale_and_raw_modes(tmp_path: Path) -> None:
+    pixels = bytes([255, 230, 128, 60, 0, 100])
+    (tmp_path / "s.pgm").write_bytes(b"P5 3 2 255\n" + pixels)
+    (tmp_path / "s.yaml").write_text(
+        "image: s.pgm\nresolution: 1.0\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.25\nmode: scale\n"
+    )
+    m = read_ros_map(tmp_path / "s.yaml")
+    # occ = 1 − v/255. Top image row (map row 1): 255, 230, 128 → occ 0, 0.098, 0.498 → free, free,
+    # rint((0.498 − 0.25)/0.4·100) = 62. Bottom image row (map row 0): 60, 0, 100 → occ 0.765, 1, 0.608 →
+    # 100, 100, rint(89.46) = 89.
+    np.testing.assert_array_equal(m.occupancy, [[100, 100, 89], [0, 0, 62]])
+    (tmp_path / "r.yaml").write_text("image: s.pgm\nresolution: 1.0\norigin: [0.0, 0.0, 0.0]\nmode: raw\n")
+    r = read_ros_map(tmp_path / "r.yaml")
+    np.testing.assert_array_equal(r.occupancy, [[60, 0, 100], [-1, -1, -1]])
+
+
+def test_read_16_bit_and_colour_images(tmp_path: Path) -> None:
+    (tmp_path / "w.pgm").write_bytes(b"P5\n2 1\n65535\n" + np.array([0, 65535], dtype=">u2").tobytes())
+    (tmp_path / "w.yaml").write_text("image: w.pgm\nresolution: 1\norigin: [0, 0, 0]\n")
+    np.testing.assert_array_equal(read_ros_map(tmp_path / "w.yaml").occupancy, [[100, 0]])
+    (tmp_path / "c.ppm").write_bytes(b"P6\n2 1\n255\n" + bytes([255, 255, 255, 0, 30, 0]))
+    (tmp_path / "c.yaml").write_text(f"image: {tmp_path / 'c.ppm'}\nresolution: 1\norigin: [0, 0, 0]\n")
+    np.testing.assert_array_equal(read_ros_map(tmp_path / "c.yaml").occupancy, [[0, 100]])
+
+
+def test_grid_round_trip_through_files(tmp_path: Path) -> None:
+    g = OccupancyGrid(30, 20, 0.1, (-1.0, -0.5))
+    angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
+    for _ in range(6):
+        g.integrate_scan((0.4, 0.5, 0.3), angles, np.full(90, 0.7), 5.0)
+    states = g.states()
+    write_ros_map(tmp_path / "g.yaml", states, g.resolution_m, g.origin_m)
+    m = read_ros_map(tmp_path / "g.yaml")
+    np.testing.assert_array_equal(m.occupancy, states)
+    h = OccupancyGrid.from_ros_map(m)
+    assert h.shape == g.shape
+    assert h.origin_m == g.origin_m
+    np.testing.assert_array_equal(h.states(), states)
+
+
+def test_ros_map_is_immutable_and_validated() -> None:
+    occ = np.zeros((2, 2), dtype=np.int8)
+    m = RosMap(occ, 0.1, (0.0, 0.0, 0.0))
+    occ[0, 0] = 100
+    assert m.occupancy[0, 0] == 0  # copied
+    with pytest.raises(ValueError):
+        m.occupancy[0, 0] = 100
+    with pytest.raises(AttributeError):
+        m.resolution_m = 0.2  # type: ignore[misc]
+    with pytest.raises(InvalidGridError):
+        RosMap(np.zeros((2, 2)), 0.1, (0.0, 0.0, 0.0))
+    with pytest.raises(InvalidParameterError):
+        RosMap(np.zeros((2, 2), dtype=np.int8), 0.0, (0.0, 0.0, 0.0))
+    with pytest.raises(InvalidParameterError):
+        OccupancyGrid.from_ros_map(RosMap(np.zeros((2, 2), dtype=np.int8), 0.1, (0.0, 0.0, 0.5)))
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "image"),
+    [
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"\x89PNG\r\n\x1a\n"),
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P5\n4 4\n255\n\x00\x00"),  # truncated
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P5\n0 4\n255\n"),
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P2\n2 1\n10\n3 11\n"),  # above maxval
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P5\n2 a\n255\n\x00\x00"),
+        ("resolution: 0.1\norigin: [0, 0, 0]\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\norigin: [0, 0, 0]\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\nresolution: -0.1\norigin: [0, 0, 0]\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0]\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, nan, 0]\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nmode: fancy\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 2\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nfree_thresh: 0.9\n", b"P5\n1 1\n255\n\x00"),
+        ("image: x.pgm\nresolution: [0.1\n", b"P5\n1 1\n255\n\x00"),
+        ("- just a list\n", b"P5\n1 1\n255\n\x00"),
+    ],
+)
+def test_malformed_files_raise_map_file_error(tmp_path: Path, yaml_text: str, image: bytes) -> None:
+    (tmp_path / "x.pgm").write_bytes(image)
+    (tmp_path / "m.yaml").write_text(yaml_text)
+    with pytest.raises(MapFileError):
+        read_ros_map(tmp_path / "m.yaml")
+
+
+def test_missing_files_raise_os_errors(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError):
+        read_ros_map(tmp_path / "nope.yaml")
+    (tmp_path / "m.yaml").write_text("image: gone.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n")
+    with pytest.raises(FileNotFoundError):
+        read_ros_map(tmp_path / "m.yaml")
+
+
+@pytest.mark.parametrize(
+    ("occupancy", "kwargs", "error"),
+    [
+        (np.zeros((2, 2)), {}, InvalidGridError),
+        (np.zeros((0, 2), dtype=np.int8), {}, InvalidGridError),
+        (np.full((2, 2), 120, dtype=np.int16), {}, InvalidGridError),
+        (
+            np.zeros((2, 2), dtype=np.int8),
+            {"free_thresh": 0.25},
+            InvalidParameterError,
+        ),  # 205 would read as free
+        (np.zeros((2, 2), dtype=np.int8), {"occupied_thresh": 0.1}, InvalidParameterError),
+        (np.zeros((2, 2), dtype=np.int8), {"image_name": "sub/x.pgm"}, InvalidParameterError),
+    ],
+)
+def test_write_rejects_bad_input(tmp_path: Path, occupancy: np.ndarray, kwargs: dict, error: type) -> None:
+    with pytest.raises(error):
+        write_ros_map(tmp_path / "m.yaml", occupancy, 0.1, (0.0, 0.0), **kwargs)
+    with pytest.raises(InvalidParameterError):
+        write_ros_map(tmp_path / "m.yaml", np.zeros((2, 2), dtype=np.int8), float("nan"), (0.0, 0.0))
+    with pytest.raises(InvalidParameterError):
+        write_ros_map(tmp_path / "m.yaml", np.zeros((2, 2), dtype=np.int8), 0.1, (0.0,))
