@@ -1,0 +1,59 @@
+"""SimRunner: hooks run on their sim-time schedule; the run covers exactly the requested sim time."""
+
+from __future__ import annotations
+
+import pytest
+
+from mjnav.sim import InvalidCommandError, SimRunner, Simulator
+
+
+def test_hooks_run_on_schedule_and_the_end_time_is_exclusive() -> None:
+    sim = Simulator("empty", seed=0, lidar=None)
+    runner = SimRunner(sim, rtf=None)
+    frames: list[float] = []
+    fast: list[int] = []
+    runner.add_hook(lambda s: frames.append(s.time_s), 1.0 / 30.0)
+    runner.add_hook(lambda s: fast.append(s.step_count), None)
+    stats = runner.run(3.0)
+    assert stats.sim_time_s == pytest.approx(3.0)
+    assert stats.steps == 1500
+    assert sim.time_s == pytest.approx(3.0)
+    assert len(frames) == 90
+    assert frames[0] == 0.0
+    assert all(abs(t - k / 30.0) <= 0.001 + 1e-12 for k, t in enumerate(frames))  # rounded to 2 ms steps
+    assert fast == list(range(1500))
+    assert stats.wall_s > 0.0 and stats.real_time_factor > 0.0
+
+
+def test_a_controller_hook_keeps_the_watchdog_fed_and_should_stop_ends_the_run() -> None:
+    sim = Simulator("empty", seed=0, lidar=None)
+    runner = SimRunner(sim, rtf=None)
+    runner.add_hook(lambda s: s.set_command(0.4, 0.0), 0.1)
+    stats = runner.run(2.0, should_stop=lambda: sim.ground_truth_pose().x > 0.5)
+    assert stats.stopped_early
+    assert 0.5 < sim.ground_truth_pose().x < 0.6
+    assert not sim.watchdog_tripped
+    stats = runner.run(1.0)  # a second run continues from where the first stopped
+    assert not stats.stopped_early and stats.sim_time_s == pytest.approx(1.0)
+
+
+def test_paced_run_reaches_the_same_state_as_an_unpaced_one() -> None:
+    states = []
+    for rtf in (None, 20.0):
+        sim = Simulator("rooms", seed=5)
+        runner = SimRunner(sim, rtf=rtf)
+        runner.add_hook(lambda s: s.set_command(0.3, 0.5), 0.1)
+        runner.run(0.5)
+        states.append((sim.ground_truth_pose(), sim.odometry().pose))
+    assert states[0] == states[1]
+
+
+def test_bad_runner_arguments_are_typed_errors() -> None:
+    sim = Simulator("empty", seed=0, lidar=None)
+    with pytest.raises(InvalidCommandError):
+        SimRunner(sim, rtf=0.0)
+    runner = SimRunner(sim, rtf=None)
+    with pytest.raises(InvalidCommandError):
+        runner.add_hook(lambda s: None, -1.0)
+    with pytest.raises(InvalidCommandError):
+        runner.run(-1.0)

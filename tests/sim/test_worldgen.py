@@ -1,0 +1,146 @@
+"""Occupancy map → world: exact greedy rectangle cover, Moving AI and ROS maps, the CLI."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mjnav.cli import main
+from mjnav.geometry import Pose2D
+from mjnav.sim import MapConversionError, Simulator, world_info
+from mjnav.sim.worldgen import add_border, load_grid_map, merge_rectangles, write_scene_from_map
+
+MAP_TEXT = """type octile
+height 6
+width 10
+map
+..........
+..@@@@....
+..@@@@....
+.......T..
+.......T..
+..........
+"""
+
+
+def _cover(rects: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    count = np.zeros(shape, dtype=int)
+    for r, c, nr, nc in rects:
+        count[r : r + nr, c : c + nc] += 1
+    return count
+
+
+@pytest.mark.parametrize("density", [0.1, 0.5, 0.9])
+def test_merged_rectangles_cover_exactly_the_occupied_cells(density: float) -> None:
+    rng = np.random.default_rng(42)
+    occ = rng.random((40, 57)) < density
+    rects = merge_rectangles(occ)
+    count = _cover(rects, occ.shape)
+    assert np.array_equal(count, occ.astype(int))  # no gaps, no overlaps, nothing outside
+    assert len(rects) <= occ.sum()
+
+
+def test_blocky_maps_merge_into_few_boxes() -> None:
+    occ = np.zeros((50, 80), dtype=bool)
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = True  # a closed room
+    occ[10:30, 20:45] = True  # one big block
+    rects = merge_rectangles(occ)
+    assert len(rects) == 5
+    assert np.array_equal(_cover(rects, occ.shape), occ.astype(int))
+
+
+def test_moving_ai_map_becomes_a_world_with_walls_where_the_map_says(tmp_path: Path) -> None:
+    src = tmp_path / "tiny.map"
+    src.write_text(MAP_TEXT)
+    grid = load_grid_map(src, resolution_m=1.0)
+    assert grid.occupied.shape == (6, 10)
+    assert grid.occupied[-2, 2:6].all()  # row 1 of the file (from the top) is the second-highest y row
+    out = tmp_path / "tiny.xml"
+    summary = write_scene_from_map(src, out, resolution_m=1.0, start=Pose2D(0.5, 0.5, 0.0), goal=Pose2D(9.5, 5.5))
+    assert summary.occupied_cells == 10 + 36  # the map's 10 + the border ring (12 x 8 - 10 x 6)
+    assert summary.boxes == 2 + 4  # the @ block and the T column, plus four border walls
+    info = world_info(out)
+    assert info.start == Pose2D(0.5, 0.5, 0.0)
+    assert info.goal is not None and info.goal.x == pytest.approx(9.5)
+    assert info.bounds_m == pytest.approx((-1.0, -1.0, 11.0, 7.0))
+    # the @ block spans x [2, 6], y [3, 5]: a robot at (4, 2) looking up sees its south face 1 m away
+    sim = Simulator(out, seed=0, start=Pose2D(4.0, 2.0, math.pi / 2))
+    scan = sim.lidar_scan()
+    ahead = int(np.argmin(np.abs(scan.angles_rad)))
+    assert scan.ranges_m[ahead] == pytest.approx(1.0, abs=0.05)
+    sim.step_until(0.5)
+    assert sim.mujoco_warnings() == {} and sim.collisions == 0
+
+
+def _write_ros_map(tmp_path: Path, pixels: np.ndarray, origin: list[float], resolution: float) -> Path:
+    h, w = pixels.shape
+    (tmp_path / "m.pgm").write_bytes(f"P5\n{w} {h}\n255\n".encode() + pixels.astype(np.uint8).tobytes())
+    yaml = tmp_path / "m.yaml"
+    yaml.write_text(
+        f"image: m.pgm\nresolution: {resolution}\norigin: {origin}\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    return yaml
+
+
+def test_ros_map_keeps_its_resolution_and_origin(tmp_path: Path) -> None:
+    px = np.full((40, 60), 254, dtype=np.uint8)  # free
+    px[0:5, :] = 0  # top 5 image rows occupied = the highest y
+    px[20:25, 10:20] = 205  # unknown
+    yaml = _write_ros_map(tmp_path, px, [-3.0, -1.0, 0.0], 0.05)
+    grid = load_grid_map(yaml)
+    assert grid.resolution_m == 0.05 and grid.origin_m == (-3.0, -1.0, 0.0)
+    assert grid.occupied.sum() == 5 * 60 and grid.occupied[-5:].all()
+    assert load_grid_map(yaml, unknown_is_occupied=True).occupied.sum() == 5 * 60 + 50
+    out = tmp_path / "ros.xml"
+    summary = write_scene_from_map(yaml, out, border=False, start=Pose2D(-1.5, -0.5), goal=Pose2D(-0.5, -0.5))
+    assert summary.boxes == 1
+    info = world_info(out)
+    assert info.bounds_m == pytest.approx((-3.0, -1.0 + 35 * 0.05, 0.0, 1.0))  # x [-3, 0], y [0.75, 1.0]
+
+
+def test_automatic_start_and_goal_are_far_apart_and_clear(tmp_path: Path) -> None:
+    src = tmp_path / "tiny.map"
+    src.write_text(MAP_TEXT)
+    summary = write_scene_from_map(src, tmp_path / "auto.xml", resolution_m=1.0)
+    assert summary.start.distance_to(summary.goal) > 5.0
+    sim = Simulator(tmp_path / "auto.xml", seed=0)
+    sim.step_until(0.3)
+    assert sim.collisions == 0
+
+
+def test_bad_maps_are_typed_errors(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.map"
+    bad.write_text("type octile\nheight 2\nwidth 2\nmap\n..\n")
+    with pytest.raises(MapConversionError):
+        load_grid_map(bad)
+    with pytest.raises(MapConversionError, match="unknown map format"):
+        load_grid_map(tmp_path / "x.png")
+    full = tmp_path / "full.map"
+    full.write_text("type octile\nheight 2\nwidth 2\nmap\n@@\n@@\n")
+    with pytest.raises(MapConversionError, match=r"does not fit|keeps"):
+        write_scene_from_map(full, tmp_path / "full.xml")
+    assert add_border(load_grid_map(full)).occupied.all()
+
+
+def test_cli_from_map(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "tiny.map"
+    src.write_text(MAP_TEXT)
+    out = tmp_path / "cli.xml"
+    assert main(["world", "from-map", str(src), "--out", str(out), "--resolution", "1.0", "--start", "0.5", "0.5"]) == 0
+    assert "6 boxes" in capsys.readouterr().out
+    assert world_info(out).start == Pose2D(0.5, 0.5, 0.0)
+    assert main(["world", "from-map", str(tmp_path / "nope.map"), "--out", str(out)]) == 2
+    assert "error" in capsys.readouterr().err
+
+
+def test_reference_movingai_map_converts(refdata: Path, tmp_path: Path) -> None:
+    src = refdata / "movingai" / "arena.map"
+    summary = write_scene_from_map(src, tmp_path / "arena.xml")
+    assert summary.boxes < summary.occupied_cells / 5
+    sim = Simulator(summary.path, seed=0)
+    sim.step_until(0.5)
+    assert sim.mujoco_warnings() == {} and sim.collisions == 0
