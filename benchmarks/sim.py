@@ -10,7 +10,9 @@ Rows (all on the same world, same machine, same run):
 * ``Simulator, no lidar``: :class:`mjnav.sim.Simulator` (collision counting, odometry at 50 Hz, watchdog).
 * ``Simulator, lidar 10 Hz x 360``: the issue's goal configuration (>= 150x real time).
 * ``mjnav sim --rtf max (SimRunner + 10 Hz command hook)``: what ``mjnav sim --no-bus --cmd ...`` runs.
-* ``with bus``: not measured yet (the Zenoh sim service is wired on top of this core later).
+* ``with bus``: the same plus :class:`mjnav.services.sim.SimBridge` publishing clock (100 Hz), scan, odom, tf,
+  joint_states, ground_truth (50 Hz) and imu (100 Hz) on Zenoh — what ``mjnav sim`` and the sim service run —
+  through an in-process router to a subscriber of every topic in another process (goal: >= 50x).
 
 The robot drives a 1 m circle (0.3 m/s, 0.3 rad/s) in the start room, clear of the walls, so the contact load
 is the normal one of a driving robot. Each figure is the best of ``--repeats`` rounds; each round runs every
@@ -29,6 +31,26 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+# A subscriber to every sim topic in its own process, as the other services are; prints how many it received.
+_LISTENER = """
+import sys
+from mjnav.bus import Bus, BusConfig
+bus = Bus.open(BusConfig(connect=(sys.argv[1],)))
+subs = [bus.subscribe(t) for t in ("clock", "scan", "odom", "imu", "joint_states", "tf", "ground_truth")]
+print("ready", flush=True)
+sys.stdin.read()
+print(sum(s.count for s in subs), flush=True)
+bus.close()
+"""
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
 
 
 def _interleaved(fns: dict[str, Callable[[], float]], repeats: int) -> dict[str, tuple[float, float]]:
@@ -85,12 +107,44 @@ def bench_rtf(world: str, seconds: float, repeats: int) -> dict[str, tuple[float
         r.add_hook(lambda s: s.set_command(v, w), 0.1)
         return r.run(seconds).real_time_factor
 
+    def with_bus() -> float:
+        import subprocess
+
+        from mjnav.bus import Bus, BusConfig
+        from mjnav.services.sim import SimBridge, SimConfig
+
+        endpoint = f"tcp/127.0.0.1:{_free_port()}"
+        router = Bus.open(BusConfig(mode="router", connect=(), listen=(endpoint,)))
+        listener = subprocess.Popen(
+            [sys.executable, "-c", _LISTENER, endpoint], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        )
+        try:
+            assert listener.stdout is not None and listener.stdout.readline().strip() == "ready"
+            sim = Simulator(world, seed=0, lidar=LidarConfig())
+            with Bus.open(BusConfig(connect=(endpoint,))) as bus:
+                bridge = SimBridge(sim, bus, SimConfig(world=world))
+                if not bus.publisher("clock").wait_for_subscribers(10.0):
+                    raise RuntimeError("the listener process never subscribed")
+                r = SimRunner(sim, rtf=None)
+                r.add_hook(lambda s: s.set_command(v, w), 0.1)
+                r.add_hook(lambda s: bridge.publish_due(s.time_s), bridge.tick_s)
+                rtf = r.run(seconds).real_time_factor
+            out, _ = listener.communicate("", timeout=30)
+            if int(out.strip() or 0) == 0:
+                raise RuntimeError("the listener received nothing: the bus row would be meaningless")
+            return rtf
+        finally:
+            if listener.poll() is None:
+                listener.kill()
+            router.close()
+
     fns: dict[str, Callable[[], float]] = {
         "plain mj_step (nstep, C loop)": plain(False),
         "plain mj_step (Python loop)": plain(True),
         "Simulator, no lidar": core(None),
         "Simulator, lidar 10 Hz x 360": core(LidarConfig()),
         "mjnav sim --rtf max (SimRunner + 10 Hz command hook)": runner,
+        "with bus (SimBridge publishing to a subscriber)": with_bus,
     }
     return _interleaved(fns, repeats)
 
@@ -139,7 +193,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--render", action="store_true", help="also measure offscreen rendering")
     parser.add_argument("--frames", type=int, default=150, help="frames per render run (default 150)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.add_argument("--quick", action="store_true", help="short run: 5 sim s, 2 repeats")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.seconds, args.repeats, args.frames = 5.0, 2, 60
 
     rows = bench_rtf(args.world, args.seconds, args.repeats)
     renders = bench_render(args.world, args.frames, args.repeats) if args.render else {}
@@ -149,7 +206,6 @@ def main(argv: list[str] | None = None) -> int:
                 {
                     "world": args.world,
                     "real_time_factor": {k: {"best": b, "median": m} for k, (b, m) in rows.items()},
-                    "with_bus": None,
                     "frames_per_s": {k: {"best": b, "median": m} for k, (b, m) in renders.items()},
                 }
             )
@@ -159,7 +215,6 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'loop':58s} {'real-time factor':>22s}")
     for name, (best, med) in rows.items():
         print(f"{name:58s} {best:10.0f}x ({med:6.0f}x)")
-    print(f"{'with bus (Zenoh sim service)':58s} {'not wired yet':>22s}")
     if renders:
         print(f"\n{'rendering':58s} {'frames/s':>22s}")
         for name, (best, med) in renders.items():

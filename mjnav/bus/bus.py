@@ -98,7 +98,7 @@ class Publisher:
             congestion_control=zenoh.CongestionControl.BLOCK if event else zenoh.CongestionControl.DROP,
             reliability=zenoh.Reliability.RELIABLE,
             priority=zenoh.Priority.DATA_HIGH if event else zenoh.Priority.DATA,
-            express=not event,
+            express=False,
         )
 
     def put(self, msg: Any) -> None:

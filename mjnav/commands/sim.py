@@ -74,8 +74,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument(
         "--no-bus",
         action="store_true",
-        help="run the simulation alone, without publishing on Zenoh (currently the only mode)",
+        help="run the simulation alone; by default it publishes clock, scan, odom, imu, joint_states, tf and "
+        "ground_truth on Zenoh and obeys cmd_vel, like the sim service",
     )
+    p.add_argument("--ns", default="robot0", help="robot namespace on the bus (default robot0)")
     p.add_argument(
         "--json",
         action="store_true",
@@ -94,6 +96,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--record", metavar="MP4", default=None, help="also record an H.264 video to this file")
     p.add_argument("--record-fps", type=float, default=30.0, help="video frame rate (default 30)")
     p.add_argument("--camera", default="top", help="video camera: top, follow or a model camera (default top)")
+    from mjnav.bus import add_bus_arguments
+
+    add_bus_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -124,16 +129,24 @@ def make_hooks(args: argparse.Namespace, sim: Simulator) -> list[tuple[Hook, flo
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulation; exit code 0, 2 for a bad world or argument, 1 for another simulation error."""
+    from mjnav.bus import Bus, BusConfigError, bus_config_from_args
+    from mjnav.services.sim import SimBridge, SimConfig
     from mjnav.sim import Recorder, SimRunner
     from mjnav.sim.errors import InvalidCommandError, ModelLoadError, SimError, UnknownWorldError
 
-    if not args.no_bus:
-        print("mjnav sim: the Zenoh bus path is not wired yet; running without the bus", file=sys.stderr)
+    bus = None
     try:
         sim = build_simulator(args)
         runner = SimRunner(sim, rtf=args.rtf)
         for hook, period in make_hooks(args, sim):
             runner.add_hook(hook, period)
+        if not args.no_bus:
+            bus = Bus.open(bus_config_from_args(args), args.ns)
+            config = SimConfig(
+                world=args.world, seed=args.seed, lidar_beams=args.lidar_beams, lidar_rate_hz=args.lidar_rate
+            )
+            bridge = SimBridge(sim, bus, config)
+            runner.add_hook(lambda s: bridge.publish_due(s.time_s), bridge.tick_s)
         recorder = None
         if args.record:
             recorder = Recorder(
@@ -150,12 +163,15 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if recorder is not None:
                 recorder.close()
-    except (UnknownWorldError, ModelLoadError, InvalidCommandError, ValueError) as exc:
+    except (UnknownWorldError, ModelLoadError, InvalidCommandError, BusConfigError, ValueError) as exc:
         print(f"mjnav sim: error: {exc}", file=sys.stderr)
         return 2
     except SimError as exc:
         print(f"mjnav sim: error: {exc}", file=sys.stderr)
         return 1
+    finally:
+        if bus is not None:
+            bus.close()
     pose = sim.ground_truth_pose()
     rtf = stats.real_time_factor
     print(

@@ -8,9 +8,52 @@ from typing import Any
 import numpy as np
 
 from mjnav.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
-from mjnav.msgs.codec import msg_class
+from mjnav.msgs.codec import typestore
 
 _NS_PER_S = 1_000_000_000
+
+# Message classes resolved once: these builders run on hot paths (the sim publishes thousands per second).
+_types = typestore().types
+_Clock = _types["rosgraph_msgs/msg/Clock"]
+_Header = _types["std_msgs/msg/Header"]
+_Imu = _types["sensor_msgs/msg/Imu"]
+_JointState = _types["sensor_msgs/msg/JointState"]
+_LaserScan = _types["sensor_msgs/msg/LaserScan"]
+_Odometry = _types["nav_msgs/msg/Odometry"]
+_Point = _types["geometry_msgs/msg/Point"]
+_Pose = _types["geometry_msgs/msg/Pose"]
+_PoseStamped = _types["geometry_msgs/msg/PoseStamped"]
+_PoseWithCovariance = _types["geometry_msgs/msg/PoseWithCovariance"]
+_Quaternion = _types["geometry_msgs/msg/Quaternion"]
+_TFMessage = _types["tf2_msgs/msg/TFMessage"]
+_Time = _types["builtin_interfaces/msg/Time"]
+_Transform = _types["geometry_msgs/msg/Transform"]
+_TransformStamped = _types["geometry_msgs/msg/TransformStamped"]
+_Twist = _types["geometry_msgs/msg/Twist"]
+_TwistWithCovariance = _types["geometry_msgs/msg/TwistWithCovariance"]
+_Vector3 = _types["geometry_msgs/msg/Vector3"]
+_ZERO36 = np.zeros(36)
+_ZERO36.setflags(write=False)
+_ZERO9 = np.zeros(9)
+_ZERO9.setflags(write=False)
+_NO_FLOATS32 = np.zeros(0, dtype=np.float32)
+_NO_FLOATS32.setflags(write=False)
+_NO_FLOATS64 = np.zeros(0)
+_NO_FLOATS64.setflags(write=False)
+
+
+def _diagonal36(index: tuple[int, ...], values: tuple[float, ...]) -> Any:
+    if not any(values):
+        return _ZERO36
+    cov = np.zeros(36)
+    cov[list(index)] = values
+    return cov
+
+
+def _diagonal9(variance: float) -> Any:
+    if variance == 0.0:
+        return _ZERO9
+    return np.diag([variance] * 3).reshape(9)
 
 
 def time_msg(t_s: float) -> Any:
@@ -18,7 +61,7 @@ def time_msg(t_s: float) -> Any:
     if not (math.isfinite(t_s) and t_s >= 0.0):
         raise ValueError(f"a stamp needs a finite, non-negative time, got {t_s}")
     ns = round(t_s * _NS_PER_S)
-    return msg_class("builtin_interfaces/msg/Time")(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
+    return _Time(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
 
 
 def seconds(stamp: Any) -> float:
@@ -28,26 +71,26 @@ def seconds(stamp: Any) -> float:
 
 def header(t_s: float, frame_id: str) -> Any:
     """std_msgs/Header stamped ``t_s`` (sim seconds) in ``frame_id``."""
-    return msg_class("std_msgs/msg/Header")(stamp=time_msg(t_s), frame_id=frame_id)
+    return _Header(stamp=time_msg(t_s), frame_id=frame_id)
 
 
 def clock(t_s: float) -> Any:
     """rosgraph_msgs/Clock at ``t_s`` seconds."""
-    return msg_class("rosgraph_msgs/msg/Clock")(clock=time_msg(t_s))
+    return _Clock(clock=time_msg(t_s))
 
 
 def pose_msg(pose: Pose2D, z_m: float = 0.0) -> Any:
     """geometry_msgs/Pose of a planar pose (yaw about +z)."""
     qx, qy, qz, qw = yaw_to_quaternion(pose.theta)
-    return msg_class("geometry_msgs/msg/Pose")(
-        position=msg_class("geometry_msgs/msg/Point")(x=pose.x, y=pose.y, z=z_m),
-        orientation=msg_class("geometry_msgs/msg/Quaternion")(x=qx, y=qy, z=qz, w=qw),
+    return _Pose(
+        position=_Point(x=pose.x, y=pose.y, z=z_m),
+        orientation=_Quaternion(x=qx, y=qy, z=qz, w=qw),
     )
 
 
 def pose_stamped(t_s: float, frame_id: str, pose: Pose2D) -> Any:
     """geometry_msgs/PoseStamped of a planar pose."""
-    return msg_class("geometry_msgs/msg/PoseStamped")(header=header(t_s, frame_id), pose=pose_msg(pose))
+    return _PoseStamped(header=header(t_s, frame_id), pose=pose_msg(pose))
 
 
 def pose2d(pose: Any) -> Pose2D:
@@ -58,10 +101,8 @@ def pose2d(pose: Any) -> Pose2D:
 
 def twist(v_mps: float, omega_radps: float) -> Any:
     """geometry_msgs/Twist with forward speed ``v_mps`` and yaw rate ``omega_radps``."""
-    vec = msg_class("geometry_msgs/msg/Vector3")
-    return msg_class("geometry_msgs/msg/Twist")(
-        linear=vec(x=v_mps, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=omega_radps)
-    )
+    vec = _Vector3
+    return _Twist(linear=vec(x=v_mps, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=omega_radps))
 
 
 def odometry(
@@ -81,34 +122,32 @@ def odometry(
         pose_variance: variances of x (m²), y (m²) and yaw (rad²) placed on the 6×6 covariance diagonal.
         twist_variance: variances of v (m²/s²) and ω (rad²/s²).
     """
-    pose_cov = np.zeros(36)
-    pose_cov[[0, 7, 35]] = pose_variance
-    twist_cov = np.zeros(36)
-    twist_cov[[0, 35]] = twist_variance
-    return msg_class("nav_msgs/msg/Odometry")(
+    pose_cov = _diagonal36((0, 7, 35), pose_variance)
+    twist_cov = _diagonal36((0, 35), twist_variance)
+    return _Odometry(
         header=header(t_s, frame_id),
         child_frame_id=child_frame_id,
-        pose=msg_class("geometry_msgs/msg/PoseWithCovariance")(pose=pose_msg(pose), covariance=pose_cov),
-        twist=msg_class("geometry_msgs/msg/TwistWithCovariance")(twist=twist(v_mps, omega_radps), covariance=twist_cov),
+        pose=_PoseWithCovariance(pose=pose_msg(pose), covariance=pose_cov),
+        twist=_TwistWithCovariance(twist=twist(v_mps, omega_radps), covariance=twist_cov),
     )
 
 
 def transform_stamped(t_s: float, parent_frame: str, child_frame: str, pose: Pose2D) -> Any:
     """geometry_msgs/TransformStamped placing ``child_frame`` at ``pose`` in ``parent_frame``."""
     qx, qy, qz, qw = yaw_to_quaternion(pose.theta)
-    return msg_class("geometry_msgs/msg/TransformStamped")(
+    return _TransformStamped(
         header=header(t_s, parent_frame),
         child_frame_id=child_frame,
-        transform=msg_class("geometry_msgs/msg/Transform")(
-            translation=msg_class("geometry_msgs/msg/Vector3")(x=pose.x, y=pose.y, z=0.0),
-            rotation=msg_class("geometry_msgs/msg/Quaternion")(x=qx, y=qy, z=qz, w=qw),
+        transform=_Transform(
+            translation=_Vector3(x=pose.x, y=pose.y, z=0.0),
+            rotation=_Quaternion(x=qx, y=qy, z=qz, w=qw),
         ),
     )
 
 
 def tf_message(*transforms: Any) -> Any:
     """tf2_msgs/TFMessage holding ``transforms`` (geometry_msgs/TransformStamped)."""
-    return msg_class("tf2_msgs/msg/TFMessage")(transforms=list(transforms))
+    return _TFMessage(transforms=list(transforms))
 
 
 def imu(
@@ -122,29 +161,29 @@ def imu(
     accel_variance: float = 0.0,
 ) -> Any:
     """sensor_msgs/Imu; variances go on the covariance diagonals (orientation covariance left at 0)."""
-    vec = msg_class("geometry_msgs/msg/Vector3")
+    vec = _Vector3
     q = [float(v) for v in orientation_xyzw]
     g = [float(v) for v in angular_velocity_radps]
     a = [float(v) for v in linear_acceleration_mps2]
-    return msg_class("sensor_msgs/msg/Imu")(
+    return _Imu(
         header=header(t_s, frame_id),
-        orientation=msg_class("geometry_msgs/msg/Quaternion")(x=q[0], y=q[1], z=q[2], w=q[3]),
-        orientation_covariance=np.zeros(9),
+        orientation=_Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]),
+        orientation_covariance=_ZERO9,
         angular_velocity=vec(x=g[0], y=g[1], z=g[2]),
-        angular_velocity_covariance=np.diag([gyro_variance] * 3).reshape(9),
+        angular_velocity_covariance=_diagonal9(gyro_variance),
         linear_acceleration=vec(x=a[0], y=a[1], z=a[2]),
-        linear_acceleration_covariance=np.diag([accel_variance] * 3).reshape(9),
+        linear_acceleration_covariance=_diagonal9(accel_variance),
     )
 
 
 def joint_state(t_s: float, names: Any, position_rad: Any, velocity_radps: Any) -> Any:
     """sensor_msgs/JointState with positions and velocities (no efforts)."""
-    return msg_class("sensor_msgs/msg/JointState")(
+    return _JointState(
         header=header(t_s, ""),
         name=list(names),
         position=np.asarray(position_rad, dtype=np.float64),
         velocity=np.asarray(velocity_radps, dtype=np.float64),
-        effort=np.zeros(0, dtype=np.float64),
+        effort=_NO_FLOATS64,
     )
 
 
@@ -161,7 +200,7 @@ def laser_scan(
 ) -> Any:
     """sensor_msgs/LaserScan; ``ranges_m`` keeps REP-117 values (+inf: no return, -inf: too close)."""
     ranges = np.asarray(ranges_m, dtype=np.float32)
-    return msg_class("sensor_msgs/msg/LaserScan")(
+    return _LaserScan(
         header=header(t_s, frame_id),
         angle_min=float(angle_min_rad),
         angle_max=float(angle_min_rad + angle_increment_rad * (len(ranges) - 1)),
@@ -171,5 +210,5 @@ def laser_scan(
         range_min=float(range_min_m),
         range_max=float(range_max_m),
         ranges=ranges,
-        intensities=np.zeros(0, dtype=np.float32),
+        intensities=_NO_FLOATS32,
     )

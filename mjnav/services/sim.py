@@ -113,12 +113,18 @@ class SimBridge:
         sim = self.sim
         while True:
             t = sim.time_s
-            self._publish_due(t)
+            self.publish_due(t)
             if t >= target_s - 1e-9 or (wall_deadline is not None and time.perf_counter() >= wall_deadline):
                 return
             sim.step_until(min(target_s, self._clock.next_t, self._odom.next_t, self._imu.next_t))
 
-    def _publish_due(self, t: float) -> None:
+    @property
+    def tick_s(self) -> float:
+        """Sim-time period at which :meth:`publish_due` must be called (the clock period)."""
+        return self._clock.period
+
+    def publish_due(self, t: float) -> None:
+        """Apply a new ``cmd_vel`` and publish every message due at sim time ``t`` (call every :attr:`tick_s`)."""
         sim = self.sim
         if self._clock.due(t):
             cmd = self._cmd.take()
