@@ -1,1 +1,48 @@
-"""mjnav.control."""
+"""Path-tracking control: regulated pure pursuit and its regulation terms, PID and LQR.
+
+All trackers share one interface: ``compute(pose, speed_mps, path, obstacle_distance_m=inf) -> (v, ω)``,
+``reset()`` and ``goal_reached``. Paths are (N, 2) float arrays in metres.
+"""
+
+from mjnav.control.errors import ControlDesignError, PathError
+from mjnav.control.lqr import LQR, LQRTracker, LQRTrackerParams, lateral_error_model
+from mjnav.control.pid import PID, PIDTracker, PIDTrackerParams
+from mjnav.control.pure_pursuit import PurePursuit, PurePursuitParams, PursuitStatus
+from mjnav.control.regulation import (
+    adaptive_lookahead,
+    angular_velocity,
+    approach_regulated_speed,
+    clamp_yaw_rate,
+    curvature_regulated_speed,
+    proximity_regulated_speed,
+    pursuit_curvature,
+    rotate_in_place_rate,
+)
+from mjnav.control.tracking import ErrorFeedbackTracker, TrackerParams, TrackingError, tracking_error
+
+__all__ = [
+    "LQR",
+    "PID",
+    "ControlDesignError",
+    "ErrorFeedbackTracker",
+    "LQRTracker",
+    "LQRTrackerParams",
+    "PIDTracker",
+    "PIDTrackerParams",
+    "PathError",
+    "PurePursuit",
+    "PurePursuitParams",
+    "PursuitStatus",
+    "TrackerParams",
+    "TrackingError",
+    "adaptive_lookahead",
+    "angular_velocity",
+    "approach_regulated_speed",
+    "clamp_yaw_rate",
+    "curvature_regulated_speed",
+    "lateral_error_model",
+    "proximity_regulated_speed",
+    "pursuit_curvature",
+    "rotate_in_place_rate",
+    "tracking_error",
+]
