@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mjnav.geometry import Pose2D, wrap_angle
-from mjnav.sim._diffdrive import twist_from_wheels
+from mjnav.motion import DiffDriveKinematics
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,6 +98,7 @@ class WheelOdometry:
             1.0 + float(rng.normal(0.0, config.wheel_radius_error_std)),
         )
         self.separation_scale = 1.0 + float(rng.normal(0.0, config.wheel_separation_error_std))
+        self._kinematics = DiffDriveKinematics(self._diameter, self._separation * self.separation_scale)
         self._tick = 2.0 * math.pi / config.ticks_per_rev if config.ticks_per_rev > 0 else 0.0
         self._x = self._y = self._theta = 0.0
         self._last = (0.0, 0.0)
@@ -127,7 +128,8 @@ class WheelOdometry:
             dr *= 1.0 + float(noise[1])
         dl *= self.radius_scale[0]
         dr *= self.radius_scale[1]
-        ds, dtheta = twist_from_wheels(dl, dr, self._diameter, self._separation * self.separation_scale)
+        # Wheel-angle increments (rad) map to (distance m, heading change rad) by the same formulas as rates.
+        ds, dtheta = self._kinematics.body_twist(dr, dl)
         mid = self._theta + 0.5 * dtheta
         self._x += ds * math.cos(mid)
         self._y += ds * math.sin(mid)

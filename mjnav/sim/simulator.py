@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjnav.geometry import Pose2D
-from mjnav.sim._diffdrive import wheels_from_twist
+from mjnav.motion import DiffDriveKinematics
 from mjnav.sim.errors import InvalidCommandError, SimError
 from mjnav.sim.lidar import Lidar, LidarConfig, LidarScan
 from mjnav.sim.model import RobotBinding, load_world, robot_radius, root_pose
@@ -124,6 +124,7 @@ class Simulator:
         self._model = loaded.model
         self._data = mujoco.MjData(self._model)
         self._robot: RobotBinding = loaded.robot
+        self._kinematics = DiffDriveKinematics(loaded.robot.wheel_diameter_m, loaded.robot.wheel_separation_m)
         self._info: WorldInfo = loaded.info
         self._dt = float(self._model.opt.timestep)
         parent = rng if rng is not None else np.random.default_rng(seed)
@@ -304,7 +305,7 @@ class Simulator:
         if not (math.isfinite(v_mps) and math.isfinite(omega_radps)):
             raise InvalidCommandError(f"command must be finite, got v={v_mps}, omega={omega_radps}")
         r = self._robot
-        left, right = wheels_from_twist(v_mps, omega_radps, r.wheel_diameter_m, r.wheel_separation_m)
+        right, left = self._kinematics.wheel_rates(v_mps, omega_radps)
         peak = max(abs(left), abs(right))
         scale = 1.0 if peak <= r.max_wheel_speed_radps else r.max_wheel_speed_radps / peak
         self._ctrl[r.wheel_actuators[0]] = left * scale
