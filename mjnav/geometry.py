@@ -5,6 +5,7 @@ Conventions follow REP-103: x forward, y left, θ counter-clockwise from +x, met
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -108,3 +109,61 @@ class Pose2D:
     def distance_to(self, other: Pose2D) -> float:
         """Euclidean distance between the two positions, metres."""
         return math.hypot(other.x - self.x, other.y - self.y)
+
+
+def interpolate_pose(a: Pose2D, b: Pose2D, alpha: float) -> Pose2D:
+    """Pose a fraction ``alpha`` (0 → a, 1 → b) of the way from ``a`` to ``b``; heading along the shortest arc."""
+    return Pose2D(
+        a.x + alpha * (b.x - a.x),
+        a.y + alpha * (b.y - a.y),
+        wrap_angle(a.theta + alpha * angle_diff(b.theta, a.theta)),
+    )
+
+
+class PoseHistory:
+    """Time-stamped poses, for looking up where the robot was when a sensor reading was taken.
+
+    Args:
+        horizon_s: how much history to keep, seconds.
+    """
+
+    def __init__(self, horizon_s: float = 2.0) -> None:
+        if not horizon_s > 0:
+            raise ValueError(f"horizon_s must be > 0, got {horizon_s}")
+        self.horizon_s = horizon_s
+        self._t: list[float] = []
+        self._poses: list[Pose2D] = []
+
+    def __len__(self) -> int:
+        return len(self._t)
+
+    def add(self, t_s: float, pose: Pose2D) -> None:
+        """Record ``pose`` at time ``t_s`` (seconds); older-than-latest stamps are ignored, old entries dropped."""
+        if self._t and t_s <= self._t[-1]:
+            if t_s == self._t[-1]:
+                self._poses[-1] = pose
+            return
+        self._t.append(t_s)
+        self._poses.append(pose)
+        cut = 0
+        while cut < len(self._t) - 1 and self._t[cut] < t_s - self.horizon_s:
+            cut += 1
+        if cut:
+            del self._t[:cut], self._poses[:cut]
+
+    def latest(self) -> tuple[float, Pose2D] | None:
+        """The newest (time, pose), or None when empty."""
+        return (self._t[-1], self._poses[-1]) if self._t else None
+
+    def at(self, t_s: float, max_extrapolation_s: float = 0.05) -> Pose2D | None:
+        """The pose at ``t_s``: interpolated between the bracketing entries; the end pose within
+        ``max_extrapolation_s`` past either end; ``None`` further out (or when empty)."""
+        if not self._t:
+            return None
+        if t_s <= self._t[0]:
+            return self._poses[0] if self._t[0] - t_s <= max_extrapolation_s else None
+        if t_s >= self._t[-1]:
+            return self._poses[-1] if t_s - self._t[-1] <= max_extrapolation_s else None
+        i = bisect.bisect_right(self._t, t_s)
+        t0, t1 = self._t[i - 1], self._t[i]
+        return interpolate_pose(self._poses[i - 1], self._poses[i], (t_s - t0) / (t1 - t0))

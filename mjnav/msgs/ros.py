@@ -19,6 +19,9 @@ _Header = _types["std_msgs/msg/Header"]
 _Imu = _types["sensor_msgs/msg/Imu"]
 _JointState = _types["sensor_msgs/msg/JointState"]
 _LaserScan = _types["sensor_msgs/msg/LaserScan"]
+_MapMetaData = _types["nav_msgs/msg/MapMetaData"]
+_OccupancyGrid = _types["nav_msgs/msg/OccupancyGrid"]
+_Path = _types["nav_msgs/msg/Path"]
 _Odometry = _types["nav_msgs/msg/Odometry"]
 _Point = _types["geometry_msgs/msg/Point"]
 _Pose = _types["geometry_msgs/msg/Pose"]
@@ -212,3 +215,50 @@ def laser_scan(
         ranges=ranges,
         intensities=_NO_FLOATS32,
     )
+
+
+def occupancy_grid(t_s: float, frame_id: str, cells: Any, resolution_m: float, origin_m: tuple[float, float]) -> Any:
+    """nav_msgs/OccupancyGrid from an (H, W) int8 array (row 0 = lowest y; values -1 or 0..100).
+
+    Args:
+        origin_m: world position (x, y) of the corner of cell (0, 0), metres; the grid is not rotated.
+    """
+    grid = np.asarray(cells, dtype=np.int8)
+    if grid.ndim != 2:
+        raise ValueError(f"an occupancy grid needs an (H, W) array, got shape {grid.shape}")
+    h, w = grid.shape
+    info = _MapMetaData(
+        map_load_time=time_msg(t_s),
+        resolution=float(resolution_m),
+        width=w,
+        height=h,
+        origin=pose_msg(Pose2D(float(origin_m[0]), float(origin_m[1]), 0.0)),
+    )
+    return _OccupancyGrid(header=header(t_s, frame_id), info=info, data=grid.reshape(-1))
+
+
+def grid_cells(msg: Any) -> tuple[Any, float, tuple[float, float]]:
+    """The (H, W) int8 cells, resolution (m) and origin (x, y) of a nav_msgs/OccupancyGrid (yaw ignored)."""
+    info = msg.info
+    cells = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
+    return cells, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y))
+
+
+def path_msg(t_s: float, frame_id: str, points: Any) -> Any:
+    """nav_msgs/Path through (N, 2) points (metres); each pose faces the next point (the last keeps the previous)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    head = header(t_s, frame_id)
+    poses = []
+    yaw = 0.0
+    for i, (x, y) in enumerate(pts):
+        if i + 1 < len(pts):
+            dx, dy = pts[i + 1] - pts[i]
+            if dx or dy:
+                yaw = math.atan2(dy, dx)
+        poses.append(_PoseStamped(header=head, pose=pose_msg(Pose2D(float(x), float(y), yaw))))
+    return _Path(header=head, poses=poses)
+
+
+def path_points(msg: Any) -> Any:
+    """(N, 2) float array of the positions of a nav_msgs/Path, metres."""
+    return np.array([(p.pose.position.x, p.pose.position.y) for p in msg.poses], dtype=np.float64).reshape(-1, 2)

@@ -126,6 +126,14 @@ TOPICS: dict[str, Topic] = {
             "True pose `map` → `base_link`",
         ),
         Topic(
+            "sim_status",
+            "mjnav_msgs/msg/SimStatus",
+            _S,
+            "sim",
+            "10 Hz",
+            "World, collisions, real-time factor, watchdog",
+        ),
+        Topic(
             "cmd_vel",
             "geometry_msgs/msg/Twist",
             _S,
@@ -169,6 +177,13 @@ ENDPOINTS: dict[str, Endpoint] = {
             "every service",
             "Current configuration of a service as JSON",
             per_service=True,
+        ),
+        Endpoint(
+            "save_map",
+            "std_msgs/msg/String",
+            "std_msgs/msg/String",
+            "mapper",
+            "Save the map as PGM + YAML; request: .yaml path (empty = configured); reply: the path written",
         ),
     )
 }

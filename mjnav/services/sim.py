@@ -1,7 +1,8 @@
 """The sim service: the MuJoCo robot on the bus.
 
 Publishes ``clock``, ``scan``, ``odom`` (wheel odometry, drifting), ``imu``, ``joint_states``, ``tf``
-(``odom → base_link``) and ``ground_truth`` (``map → base_link``), all stamped in sim time, and drives the wheels
+(``odom → base_link``), ``ground_truth`` (``map → base_link``) and ``sim_status`` (collisions, real-time factor),
+all stamped in sim time, and drives the wheels
 from the newest ``cmd_vel``. The simulator's own watchdog zeroes the wheels when that command is older than
 ``watchdog_timeout_s`` of sim time.
 
@@ -20,8 +21,11 @@ from typing import Any
 
 from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
-from mjnav.msgs import ros
+from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
+
+#: ``sim_status`` messages per sim second.
+SIM_STATUS_RATE_HZ = 10.0
 
 
 @dataclass(frozen=True)
@@ -97,11 +101,15 @@ class SimBridge:
         self.config = config
         self._cmd = bus.subscribe("cmd_vel")
         self._pub = {
-            name: bus.publisher(name) for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "ground_truth")
+            name: bus.publisher(name)
+            for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "ground_truth", "sim_status")
         }
         self._clock = _Every(config.clock_rate_hz)
         self._odom = _Every(config.odom_rate_hz)
         self._imu = _Every(config.imu_rate_hz)
+        self._status = _Every(SIM_STATUS_RATE_HZ)
+        self._sim_status = msg_class("mjnav_msgs/msg/SimStatus")
+        self._wall0 = time.monotonic()
         self._scan_time_s = 1.0 / config.lidar_rate_hz
         self.commands_applied = 0
 
@@ -155,6 +163,17 @@ class SimBridge:
             wheels = sim.wheel_states()
             self._pub["joint_states"].put(ros.joint_state(t, wheels.names, wheels.position_rad, wheels.velocity_radps))
             self._pub["ground_truth"].put(ros.pose_stamped(t, "map", sim.ground_truth_pose()))
+        if self._status.due(t):
+            wall = time.monotonic() - self._wall0
+            self._pub["sim_status"].put(
+                self._sim_status(
+                    header=ros.header(t, "map"),
+                    world=sim.world.name,
+                    collisions=sim.collisions,
+                    real_time_factor=t / wall if wall > 0 else 0.0,
+                    watchdog_tripped=sim.watchdog_tripped,
+                )
+            )
         if self._imu.due(t):
             reading = sim.imu()
             self._pub["imu"].put(

@@ -1,0 +1,243 @@
+"""``mjnav demo``: the whole stack on an embedded router, a navigation mission, and its summary."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+
+def register(sub: Any) -> None:
+    """Add the ``demo`` command."""
+    p = sub.add_parser(
+        "demo",
+        help="run the navigation mission end to end and print its summary",
+        description=(
+            "Start a Zenoh router and every service of the stack (sim, mapper, planner, smoother, controller, …), "
+            "send the goal(s), and end with a summary. The robot starts with an unknown map. Exit code 0 only when "
+            "every goal was reached. With --json the last stdout line is the summary as JSON: reached, collisions, "
+            "time_s (sim), path_length_m (driven), optimal_length_m (shortest collision-free path for the robot's "
+            "radius on the true map), v_max_mps, min_clearance_m."
+        ),
+        epilog="Example: mjnav demo --world rooms --rtf 4 --out runs/first --record",
+    )
+    p.add_argument("--world", default="rooms", help="empty, rooms, maze, warehouse or an MJCF path (default rooms)")
+    goals = p.add_mutually_exclusive_group()
+    goals.add_argument("--goal", metavar="X,Y", help="goal in the map frame, metres (default: the world's goal)")
+    goals.add_argument("--goals", metavar="FILE", help='JSON list of goals: [[x, y], …] or [{"x": …, "y": …}, …]')
+    p.add_argument("--rtf", default="4", metavar="FACTOR|max", help="real-time factor of the sim (default 4)")
+    p.add_argument(
+        "--record",
+        nargs="?",
+        const="",
+        metavar="MP4",
+        help="record a video (default file: DIR/video.mp4 with --out)",
+    )
+    p.add_argument("--headless", action="store_true", help="open no browser or window")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on the last stdout line")
+    p.add_argument("--out", metavar="DIR", help="write summary.json, the final map (PGM + YAML) and the video here")
+    p.add_argument(
+        "--timeout", type=float, default=240.0, metavar="S", help="sim seconds allowed per goal (default 240)"
+    )
+    p.add_argument("--port", type=int, default=7447, help="router port on 127.0.0.1 (default 7447)")
+    p.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SERVICE.KEY=VALUE",
+        help="override a service's config value, e.g. --set planner.algorithm=dijkstra; repeatable",
+    )
+    p.add_argument("--log-level", default="INFO", help="log level of the services (default INFO)")
+    p.set_defaults(func=run)
+
+
+def _parse_goals(args: argparse.Namespace, default: Any) -> list[tuple[float, float]]:
+    if args.goal:
+        parts = args.goal.split(",")
+        if len(parts) != 2:
+            raise ValueError(f"--goal must be X,Y, got {args.goal!r}")
+        return [(float(parts[0]), float(parts[1]))]
+    if args.goals:
+        data = json.loads(Path(args.goals).read_text(encoding="utf-8"))
+        if not isinstance(data, list) or not data:
+            raise ValueError(f"{args.goals}: expected a non-empty JSON list of goals")
+        out = []
+        for item in data:
+            x, y = (item["x"], item["y"]) if isinstance(item, dict) else (item[0], item[1])
+            out.append((float(x), float(y)))
+        return out
+    if default is None:
+        raise ValueError("this world defines no default goal: give --goal X,Y")
+    return [(default.x, default.y)]
+
+
+def run(args: argparse.Namespace) -> int:
+    """``mjnav demo``."""
+    from mjnav.bus import Bus, BusConfig
+    from mjnav.runtime.config import ConfigError, parse_override
+    from mjnav.runtime.launcher import Launcher
+    from mjnav.runtime.logs import setup_logging
+    from mjnav.runtime.stack import load_stack
+    from mjnav.sim.worlds import world_info
+
+    setup_logging(args.log_level)
+    try:
+        info = world_info(args.world)
+        goals = _parse_goals(args, info.goal)
+        if any(not (math.isfinite(x) and math.isfinite(y)) for x, y in goals):
+            raise ValueError("goals must be finite numbers")
+        rtf = 0.0 if args.rtf.strip().lower() == "max" else float(args.rtf)
+        if not (math.isfinite(rtf) and rtf >= 0):
+            raise ValueError(f"--rtf must be a positive number or 'max', got {args.rtf!r}")
+        stack = load_stack(args.stack)
+        out = Path(args.out) if args.out else None
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+        overrides: dict[str, list[str]] = {"sim": [f"world={json.dumps(str(info.path))}", f"rtf={rtf}"]}
+        if args.record is not None:
+            video = Path(args.record) if args.record else (out / "video.mp4" if out else None)
+            if video is None:
+                raise ValueError("--record without a file needs --out DIR")
+            overrides["sim"].append(f"record_path={json.dumps(str(video.resolve()))}")
+        if out is not None and "mapper" in stack.names():
+            overrides.setdefault("mapper", []).append(f"save_path={json.dumps(str((out / 'map.yaml').resolve()))}")
+        for item in args.set:
+            target, _, rest = item.partition(".")
+            stack.get(target)
+            parse_override(rest)
+            overrides.setdefault(target, []).append(rest)
+    except (ConfigError, ValueError, OSError, KeyError) as exc:
+        print(f"mjnav demo: {exc}", file=sys.stderr)
+        return 2
+
+    launcher = Launcher(
+        stack,
+        port=args.port,
+        overrides=overrides,
+        out=sys.stderr if args.json else sys.stdout,
+        extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,
+    )
+    codes: list[int] = []
+    thread = threading.Thread(target=lambda: codes.append(launcher.run(install_signals=False)), daemon=True)
+    thread.start()
+    summary = None
+    try:
+        with Bus.open(BusConfig(connect=(launcher.endpoint,)), stack.namespace) as bus:
+            summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
+    except KeyboardInterrupt:
+        print("mjnav demo: interrupted", file=sys.stderr)
+    except (RuntimeError, TimeoutError) as exc:
+        print(f"mjnav demo: {exc}", file=sys.stderr)
+    finally:
+        launcher.stop_event.set()
+        thread.join(60.0)
+    if summary is None:
+        return 1
+    data = summary.to_dict()
+    if out is not None:
+        (out / "summary.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    _print_summary(data, out)
+    if args.json:
+        print(json.dumps(data))
+    return 0 if summary.reached else 1
+
+
+def _mission(
+    bus: Any, services: list[str], goals: list[tuple[float, float]], info: Any, timeout_s: float, rtf: float
+) -> Any:
+    from mjnav.bus import NoReply, wait_until
+    from mjnav.runtime.mission import MissionClient, MissionSummary
+
+    log = sys.stderr
+    client = MissionClient(bus)
+    if not wait_until(lambda: set(services) <= set(bus.alive_services(0.5)), 180.0):
+        raise RuntimeError(f"services did not come up within 180 s (alive: {bus.alive_services(0.5)})")
+    if client.truth.wait(60.0) is None:
+        raise RuntimeError("no ground truth from the sim")
+    v_max = math.nan
+    try:
+        config = json.loads(bus.call("config", service="controller", timeout_s=5.0).data)
+        v_max = float(config.get("max_speed_mps", math.nan))
+    except (NoReply, ValueError, KeyError) as exc:
+        print(f"mjnav demo: could not read the controller's max speed: {exc}", file=log)
+    outcomes = []
+    wall_limit = 3 * timeout_s / (rtf if rtf > 0 else 10.0) + 60.0
+    for x, y in goals:
+        print(f"mjnav demo: goal ({x:.2f}, {y:.2f})", file=log)
+        outcome = client.run_goal(x, y, timeout_s=timeout_s, wall_timeout_s=wall_limit)
+        print(
+            f"mjnav demo: goal ({x:.2f}, {y:.2f}) {outcome.result} after {outcome.time_s:.1f} s sim "
+            f"{outcome.error_text}",
+            file=log,
+        )
+        outcomes.append(outcome)
+        if outcome.result != "reached":
+            break
+    optimal = _optimal_length(info, outcomes)
+    radius = _robot_radius(info)
+    return MissionSummary(
+        reached=len(outcomes) == len(goals) and all(o.result == "reached" for o in outcomes),
+        collisions=client.collisions(),
+        time_s=sum(o.time_s for o in outcomes),
+        path_length_m=sum(o.path_length_m for o in outcomes),
+        optimal_length_m=optimal,
+        v_max_mps=v_max,
+        min_clearance_m=client.min_range_m() - radius,
+        goals=[o.__dict__ for o in outcomes],
+    )
+
+
+def _robot_radius(info: Any) -> float:
+    from mjnav.sim import Simulator
+
+    return float(Simulator(info.path, lidar=None).robot_radius_m)
+
+
+def _optimal_length(info: Any, outcomes: list[Any]) -> float:
+    """Sum over the goals of the shortest collision-free path on the true map (NaN when it cannot be computed)."""
+    import mujoco
+
+    from mjnav.mapping.frame import GridFrame
+    from mjnav.planning import PlanningError
+    from mjnav.planning.reference import shortest_path_length_m
+    from mjnav.sim import Simulator
+    from mjnav.sim.truth import static_occupancy
+
+    sim = Simulator(info.path, lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    points = [o.start for o in outcomes] + [o.goal for o in outcomes]
+    xs = [p[0] for p in points if math.isfinite(p[0])]
+    ys = [p[1] for p in points if math.isfinite(p[1])]
+    if not xs:
+        return math.nan
+    x0, y0, x1, y1 = info.bounds_m or (min(xs), min(ys), max(xs), max(ys))
+    x0, y0, x1, y1 = min(x0, *xs) - 1.0, min(y0, *ys) - 1.0, max(x1, *xs) + 1.0, max(y1, *ys) + 1.0
+    res = 0.05
+    frame = GridFrame(res, (x0, y0), (math.ceil((y1 - y0) / res), math.ceil((x1 - x0) / res)))
+    obstacles = static_occupancy(sim.model, sim.data, frame)
+    total = 0.0
+    for o in outcomes:
+        try:
+            total += shortest_path_length_m(obstacles, frame, o.start, o.goal, sim.robot_radius_m)
+        except PlanningError:
+            return math.nan
+    return total
+
+
+def _print_summary(data: dict[str, Any], out: Path | None) -> None:
+    lines = [
+        f"reached: {data['reached']}   collisions: {data['collisions']}",
+        f"time: {data['time_s']} s sim   driven: {data['path_length_m']} m   optimal: {data['optimal_length_m']} m",
+        f"v_max: {data['v_max_mps']} m/s   min clearance: {data['min_clearance_m']} m",
+    ]
+    if out is not None:
+        lines.append(
+            f"files in {out}: summary.json, map.yaml + map.pgm"
+            + (", video.mp4" if (out / "video.mp4").exists() else "")
+        )
+    print("\n".join(lines), file=sys.stderr)

@@ -1,0 +1,167 @@
+"""The controller service: pure pursuit on ``path`` → ``cmd_vel`` at ``rate_hz`` of sim time.
+
+Speed is regulated by curvature and by the nearest obstacle the lidar sees in front (``scan``); the robot slows on
+approach and stops at the goal, reporting ``reached`` on ``goal_status``. It stops (and keeps publishing zero) when
+there is no path, the goal failed or was canceled, the pose is stale, or the robot is further than
+``lost_distance_m`` from the path (the planner's next replan gives a new one).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from mjnav.control import PurePursuit, PurePursuitParams
+from mjnav.msgs import msg_class, ros
+from mjnav.runtime import Service
+
+_STATUS = "mjnav_msgs/msg/GoalStatus"
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Controller settings (``services/controller.toml``).
+
+    Attributes:
+        rate_hz: command rate (sim time).
+        pose_source: ``ground_truth`` or ``odom``.
+        max_speed_mps: cruise speed v_max.
+        lookahead_gain_s, min_lookahead_m, max_lookahead_m: L = clamp(v·g, L_min, L_max).
+        curvature_threshold_invm: κ_h of the curvature heuristic.
+        proximity_distance_m: d_prox of the proximity heuristic (distance from the robot's edge).
+        goal_tolerance_m: stop within this distance of the goal.
+        robot_radius_m: subtracted from lidar ranges to get the distance from the robot's edge.
+        front_sector_rad: full width of the sector in front whose nearest return slows the robot.
+        pose_timeout_s: stop when the newest pose is older than this (sim seconds).
+        lost_distance_m: stop when the robot is further than this from the path.
+    """
+
+    rate_hz: float = 20.0
+    pose_source: Literal["ground_truth", "odom"] = "ground_truth"
+    max_speed_mps: float = 0.5
+    lookahead_gain_s: float = 1.2
+    min_lookahead_m: float = 0.35
+    max_lookahead_m: float = 1.0
+    curvature_threshold_invm: float = 1.5
+    proximity_distance_m: float = 0.5
+    goal_tolerance_m: float = 0.1
+    robot_radius_m: float = 0.19
+    front_sector_rad: float = 1.6
+    pose_timeout_s: float = 0.5
+    lost_distance_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("max_speed_mps", "goal_tolerance_m", "pose_timeout_s", "lost_distance_m", "front_sector_rad"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+
+    def pursuit_params(self) -> PurePursuitParams:
+        """The pure-pursuit parameters these settings stand for."""
+        return PurePursuitParams(
+            desired_speed_mps=self.max_speed_mps,
+            lookahead_gain_s=self.lookahead_gain_s,
+            min_lookahead_m=self.min_lookahead_m,
+            max_lookahead_m=self.max_lookahead_m,
+            curvature_threshold_invm=self.curvature_threshold_invm,
+            proximity_distance_m=self.proximity_distance_m,
+            goal_tolerance_m=self.goal_tolerance_m,
+        )
+
+
+class ControllerService(Service[ControllerConfig]):
+    """Follows the smoothed path with pure pursuit."""
+
+    name = "controller"
+    config_class = ControllerConfig
+
+    def configure(self) -> None:
+        self.pursuit = PurePursuit(self.config.pursuit_params())
+        self.path_sub = self.bus.subscribe("path")
+        self.pose_sub = self.bus.subscribe(self.config.pose_source)
+        self.scan_sub = self.bus.subscribe("scan")
+        self.status_sub = self.bus.subscribe("goal_status")
+        self.cmd_pub = self.bus.publisher("cmd_vel")
+        self.status_pub = self.bus.publisher("goal_status")
+        self.status_cls = msg_class(_STATUS)
+        self.path: Any = None
+        self.goal: Any = None  # the GoalStatus that made the current goal active
+        self.speed = 0.0
+        self.stopped_reason = ""
+
+    def _stop(self, reason: str) -> None:
+        self.cmd_pub.put(ros.twist(0.0, 0.0))
+        self.speed = 0.0
+        if reason != self.stopped_reason:
+            self.log.info("stopped: %s", reason)
+            self.stopped_reason = reason
+
+    def _track_goal(self) -> None:
+        cls = self.status_cls
+        for status in self.status_sub.drain():
+            if status.state == cls.STATE_FOLLOWING:
+                self.goal = status
+                self.pursuit.reset()
+            elif (
+                self.goal is not None
+                and status.goal_id == self.goal.goal_id
+                and status.state in (cls.STATE_FAILED, cls.STATE_CANCELED, cls.STATE_REACHED)
+            ):
+                self.goal = None
+
+    def step(self, now: float) -> None:
+        self._track_goal()
+        new_path = self.path_sub.take()
+        if new_path is not None:
+            self.path = ros.path_points(new_path)
+        if self.goal is None or self.path is None or len(self.path) < 2:
+            self._stop("no active goal" if self.goal is None else "no path")
+            return
+        pose_msg = self.pose_sub.latest()
+        if pose_msg is None or now - ros.seconds(pose_msg.header.stamp) > self.config.pose_timeout_s:
+            self._stop("no recent pose")
+            return
+        pose = ros.pose2d(pose_msg.pose.pose if self.config.pose_source == "odom" else pose_msg.pose)
+        v, w = self.pursuit.compute(pose, self.speed, self.path, self._obstacle_distance())
+        status = self.pursuit.status
+        if self.pursuit.goal_reached:
+            self._stop("goal reached")
+            self._report_reached(now)
+            return
+        if abs(status.cross_track_m) > self.config.lost_distance_m:
+            self._stop(f"{abs(status.cross_track_m):.2f} m off the path: waiting for a new plan")
+            return
+        self.stopped_reason = ""
+        self.speed = v
+        self.cmd_pub.put(ros.twist(v, w))
+
+    def _obstacle_distance(self) -> float:
+        """Distance from the robot's edge to the nearest lidar return in the front sector, metres (inf: none)."""
+        scan = self.scan_sub.latest()
+        if scan is None:
+            return math.inf
+        r = np.asarray(scan.ranges, dtype=np.float64)
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(r))
+        half = 0.5 * self.config.front_sector_rad
+        ahead = (np.abs(np.arctan2(np.sin(angles), np.cos(angles))) <= half) & np.isfinite(r) & (r >= scan.range_min)
+        if not ahead.any():
+            return math.inf
+        return max(0.0, float(r[ahead].min()) - self.config.robot_radius_m)
+
+    def _report_reached(self, now: float) -> None:
+        goal = self.goal
+        self.goal = None
+        cls = self.status_cls
+        self.status_pub.put(
+            cls(
+                header=ros.header(now, "map"),
+                goal_id=goal.goal_id,
+                state=cls.STATE_REACHED,
+                error_code=cls.ERROR_NONE,
+                error_text="",
+                goal=goal.goal,
+            )
+        )
+        self.log.info("goal %d reached", goal.goal_id)

@@ -1,0 +1,164 @@
+"""The mapper service: ``scan`` + robot pose → log-odds ``map`` and inflated ``costmap``.
+
+Each new scan is fused into a :class:`~mjnav.mapping.OccupancyGrid` at the pose the robot had when the scan was
+taken (interpolated from the pose topic). ``map`` (probabilities 0–100, −1 unknown) and ``costmap`` (Nav2-style
+inflation, 0–100, −1 unknown) go out at ``publish_rate_hz`` of sim time. The map is saved as PGM + YAML on request
+(endpoint ``save_map``) and on exit (``save_path``); ``prior_map`` starts from a saved map.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from mjnav.geometry import Pose2D, PoseHistory
+from mjnav.mapping import OccupancyGrid, inflation_costmap, read_ros_map, write_ros_map
+from mjnav.msgs import msg_class, ros
+from mjnav.runtime import Service
+
+
+@dataclass(frozen=True)
+class MapperConfig:
+    """Mapper settings (``services/mapper.toml``).
+
+    Attributes:
+        rate_hz: loop rate (sim time); every new scan is integrated at the next step.
+        publish_rate_hz: ``map`` and ``costmap`` publications per sim second.
+        pose_source: ``ground_truth`` (true pose) or ``odom`` (wheel odometry, drifting).
+        width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)).
+        laser_offset_m: lidar position in base_link (x, y), metres.
+        max_range_m: readings at or beyond this are "no return" (free up to it).
+        robot_radius_m: inscribed radius for the costmap's lethal inflation.
+        inflation_radius_m: cost decays to 0 at this distance from obstacles.
+        cost_scaling_factor: exponential decay rate of the cost, 1/m.
+        prior_map: ROS map YAML to start from ("" = unknown everywhere; its grid replaces width/height/origin).
+        save_path: ROS map YAML written on exit ("" = don't).
+    """
+
+    rate_hz: float = 20.0
+    publish_rate_hz: float = 2.0
+    pose_source: Literal["ground_truth", "odom"] = "ground_truth"
+    width_m: float = 20.0
+    height_m: float = 20.0
+    resolution_m: float = 0.05
+    origin_m: tuple[float, float] = (-10.0, -10.0)
+    laser_offset_m: tuple[float, float] = (0.0, 0.0)
+    max_range_m: float = 12.0
+    robot_radius_m: float = 0.2
+    inflation_radius_m: float = 0.7
+    cost_scaling_factor: float = 5.0
+    prior_map: str = ""
+    save_path: str = ""
+
+    def __post_init__(self) -> None:
+        for name in ("publish_rate_hz", "width_m", "height_m", "resolution_m", "max_range_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.robot_radius_m <= self.inflation_radius_m:
+            raise ValueError("need 0 <= robot_radius_m <= inflation_radius_m")
+
+
+class MapperService(Service[MapperConfig]):
+    """Builds the occupancy map and the costmap from scans."""
+
+    name = "mapper"
+    config_class = MapperConfig
+
+    def configure(self) -> None:
+        cfg = self.config
+        if cfg.prior_map:
+            prior = read_ros_map(cfg.prior_map)
+            self.grid = OccupancyGrid.from_ros_map(prior)
+            self.log.info(
+                "prior map %s: %dx%d cells at %.3f m", cfg.prior_map, *prior.occupancy.shape[::-1], prior.resolution_m
+            )
+        else:
+            self.grid = OccupancyGrid(
+                round(cfg.width_m / cfg.resolution_m),
+                round(cfg.height_m / cfg.resolution_m),
+                cfg.resolution_m,
+                origin_m=cfg.origin_m,
+            )
+        self.poses = PoseHistory(horizon_s=2.0)
+        self.scan = self.bus.subscribe("scan")
+        if cfg.pose_source == "ground_truth":
+            self.bus.subscribe("ground_truth", callback=self._on_ground_truth)
+        else:
+            self.bus.subscribe("odom", callback=self._on_odom)
+        self.map_pub = self.bus.publisher("map")
+        self.costmap_pub = self.bus.publisher("costmap")
+        self.bus.serve("save_map", self._on_save)
+        self.laser = Pose2D(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0)
+        self.next_publish = 0.0
+        self.scans = 0
+        self.skipped = 0
+
+    def _on_ground_truth(self, msg: Any) -> None:
+        self.poses.add(ros.seconds(msg.header.stamp), ros.pose2d(msg.pose))
+
+    def _on_odom(self, msg: Any) -> None:
+        self.poses.add(ros.seconds(msg.header.stamp), ros.pose2d(msg.pose.pose))
+
+    def step(self, now: float) -> None:
+        scan = self.scan.take()
+        if scan is not None:
+            self._integrate(scan)
+        if now >= self.next_publish:
+            self.next_publish = now + 1.0 / self.config.publish_rate_hz
+            self._publish(now)
+
+    def _integrate(self, scan: Any) -> None:
+        stamp = ros.seconds(scan.header.stamp)
+        pose = self.poses.at(stamp)
+        if pose is None:
+            self.skipped += 1
+            if self.skipped in (1, 10, 100) or self.skipped % 1000 == 0:
+                self.log.warning(
+                    "no %s pose at scan time %.3f s: %d scan(s) skipped", self.config.pose_source, stamp, self.skipped
+                )
+            return
+        n = len(scan.ranges)
+        angles = scan.angle_min + scan.angle_increment * np.arange(n)
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        max_range = min(float(scan.range_max), self.config.max_range_m)
+        self.grid.integrate_scan(pose * self.laser, angles, ranges, max_range, min_range_m=float(scan.range_min))
+        self.scans += 1
+
+    def costmap(self) -> Any:
+        """The current inflated costmap, (H, W) int8 (0..100, −1 unknown)."""
+        cfg = self.config
+        return inflation_costmap(
+            self.grid.states(),
+            self.grid.resolution_m,
+            cfg.robot_radius_m,
+            cfg.inflation_radius_m,
+            cfg.cost_scaling_factor,
+        )
+
+    def _publish(self, now: float) -> None:
+        origin = (self.grid.origin_m[0], self.grid.origin_m[1])
+        res = self.grid.resolution_m
+        self.map_pub.put(ros.occupancy_grid(now, "map", self.grid.to_ros(), res, origin))
+        self.costmap_pub.put(ros.occupancy_grid(now, "map", self.costmap(), res, origin))
+
+    def save(self, yaml_path: str | Path) -> Path:
+        """Write the map as trinary PGM + YAML; returns the YAML path."""
+        origin = (self.grid.origin_m[0], self.grid.origin_m[1], 0.0)
+        return write_ros_map(yaml_path, self.grid.states(), self.grid.resolution_m, origin)
+
+    def _on_save(self, request: Any) -> Any:
+        target = request.data or self.config.save_path
+        if not target:
+            raise ValueError("no path given and no save_path configured")
+        written = self.save(target)
+        self.log.info("map saved to %s", written)
+        return msg_class("std_msgs/msg/String")(data=json.dumps({"yaml": str(written)}))
+
+    def deactivate(self) -> None:
+        if self.config.save_path:
+            written = self.save(self.config.save_path)
+            self.log.info("map saved to %s (%d scans integrated)", written, self.scans)

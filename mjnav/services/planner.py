@@ -1,0 +1,241 @@
+"""The planner service: ``goal`` → ``plan`` on the ``costmap``, with goal status and replanning.
+
+A goal (``geometry_msgs/PoseStamped`` in ``map``) is accepted, planned with the configured algorithm from the robot's
+pose, and published as ``plan`` (``nav_msgs/Path``, cell centres). ``goal_status`` reports accepted → planning →
+following, or failed with a typed reason (start/goal occupied, outside the map, no path). While a goal is active
+the planner replans when a new costmap blocks the current path, and periodically when a cheaper route appeared;
+the goal fails when it becomes unreachable or occupied. The controller reports ``reached``; ``cancel`` ends a goal.
+Unknown space is traversable at an extra cost (see :mod:`mjnav.planning.costmap`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from mjnav.geometry import Pose2D
+from mjnav.mapping.frame import GridFrame
+from mjnav.msgs import msg_class, ros
+from mjnav.planning import (
+    ALGORITHMS,
+    GoalOccupied,
+    NoPathFound,
+    OutsideMap,
+    PlanningError,
+    StartOccupied,
+    path_cost,
+    plan_grid,
+)
+from mjnav.planning.costmap import clear_disc, planning_grid
+from mjnav.runtime import Service
+
+_STATUS = "mjnav_msgs/msg/GoalStatus"
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Planner settings (``services/planner.toml``).
+
+    Attributes:
+        rate_hz: loop rate (sim time).
+        algorithm: any of :data:`mjnav.planning.ALGORITHMS` (``jps`` falls back to ``astar`` — it takes no cost grid).
+        heuristic, connectivity, weights: passed to :func:`~mjnav.planning.plan_grid`.
+        pose_source: ``ground_truth`` or ``odom`` (the plan is in ``map``; odom drifts from it).
+        cost_weight: relative extra cost of crossing a cell at cost 98 (1 = twice its length; keeps paths off walls).
+        unknown_cost: relative extra cost of crossing an unknown cell.
+        start_clearance_m: free a disc of this radius around the robot before planning (it may stand in the
+            inscribed band after passing close to a wall).
+        replan_period_s: how often (sim s) a cheaper route is looked for while following.
+        improvement: switch to a new route only when it is cheaper than this fraction of the remaining one.
+        seed: seed of the potential field's random escapes.
+    """
+
+    rate_hz: float = 5.0
+    algorithm: str = "astar"
+    heuristic: str = "octile"
+    connectivity: int = 8
+    weights: tuple[float, float] = (1.0, 1.0)
+    pose_source: Literal["ground_truth", "odom"] = "ground_truth"
+    cost_weight: float = 2.0
+    unknown_cost: float = 0.5
+    start_clearance_m: float = 0.25
+    replan_period_s: float = 2.0
+    improvement: float = 0.9
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"algorithm must be one of {list(ALGORITHMS)}, got {self.algorithm!r}")
+        if self.connectivity not in (4, 8):
+            raise ValueError(f"connectivity must be 4 or 8, got {self.connectivity}")
+        if not 0 < self.improvement <= 1:
+            raise ValueError(f"improvement must be in (0, 1], got {self.improvement}")
+
+
+_ERRORS: list[tuple[type[PlanningError], str]] = [
+    (StartOccupied, "ERROR_START_OCCUPIED"),
+    (GoalOccupied, "ERROR_GOAL_OCCUPIED"),
+    (OutsideMap, "ERROR_OUTSIDE_MAP"),
+    (NoPathFound, "ERROR_NO_PATH"),
+]
+
+
+@dataclass
+class _Goal:
+    goal_id: int
+    msg: Any
+    pose: Pose2D
+    cells: Any = None  # (N, 2) current plan cells
+    cost_grid: Any = None
+    last_plan_t: float = -math.inf
+    following: bool = False
+
+
+class PlannerService(Service[PlannerConfig]):
+    """Plans on the costmap for each goal and keeps the plan valid."""
+
+    name = "planner"
+    config_class = PlannerConfig
+
+    def configure(self) -> None:
+        self.goals = self.bus.subscribe("goal")
+        self.cancels = self.bus.subscribe("cancel")
+        self.costmap = self.bus.subscribe("costmap")
+        self.status_in = self.bus.subscribe("goal_status")
+        self.pose = self.bus.subscribe(self.config.pose_source)
+        self.plan_pub = self.bus.publisher("plan")
+        self.status_pub = self.bus.publisher("goal_status")
+        self.status_cls = msg_class(_STATUS)
+        self.rng = np.random.default_rng(self.config.seed)
+        self.goal: _Goal | None = None
+        self.next_id = 1
+        self.grid_stamp = -1.0
+
+    # ----------------------------------------------------------------------------------------------- status
+
+    def _status(self, now: float, goal: _Goal, state: str, error: str = "ERROR_NONE", text: str = "") -> None:
+        cls = self.status_cls
+        self.status_pub.put(
+            cls(
+                header=ros.header(now, "map"),
+                goal_id=goal.goal_id,
+                state=getattr(cls, f"STATE_{state}"),
+                error_code=getattr(cls, error),
+                error_text=text,
+                goal=goal.msg,
+            )
+        )
+        if state in ("FAILED", "CANCELED"):
+            self.log.info("goal %d %s %s", goal.goal_id, state.lower(), text)
+
+    def _end(self, now: float, state: str, error: str = "ERROR_NONE", text: str = "") -> None:
+        assert self.goal is not None
+        self._status(now, self.goal, state, error, text)
+        self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
+        self.goal = None
+
+    # ----------------------------------------------------------------------------------------------- loop
+
+    def step(self, now: float) -> None:
+        for status in self.status_in.drain():
+            if (
+                self.goal is not None
+                and status.goal_id == self.goal.goal_id
+                and status.state == self.status_cls.STATE_REACHED
+            ):
+                self.log.info("goal %d reached", self.goal.goal_id)
+                self.goal = None
+        if self.cancels.drain() and self.goal is not None:
+            self._end(now, "CANCELED", text="canceled by request")
+        for msg in self.goals.drain():
+            self._accept(now, msg)
+        if self.goal is not None:
+            self._plan(now)
+
+    def _accept(self, now: float, msg: Any) -> None:
+        if self.goal is not None:
+            self._end(now, "CANCELED", text=f"superseded by goal {self.next_id}")
+        goal = _Goal(self.next_id, msg, ros.pose2d(msg.pose))
+        self.next_id += 1
+        self.goal = goal
+        self._status(now, goal, "ACCEPTED")
+        if msg.header.frame_id not in ("", "map"):
+            self._end(now, "FAILED", "ERROR_INVALID_GOAL", f"goal frame {msg.header.frame_id!r} is not 'map'")
+            return
+        self.log.info("goal %d: (%.2f, %.2f)", goal.goal_id, goal.pose.x, goal.pose.y)
+        self._status(now, goal, "PLANNING")
+
+    def _plan(self, now: float) -> None:
+        goal = self.goal
+        assert goal is not None
+        costmap_msg = self.costmap.latest()
+        pose_msg = self.pose.latest()
+        if costmap_msg is None or pose_msg is None:
+            return  # planning starts with the first costmap and pose
+        stamp = ros.seconds(costmap_msg.header.stamp)
+        fresh = stamp != self.grid_stamp
+        if goal.cells is not None and not fresh:
+            return
+        cells, res, origin = ros.grid_cells(costmap_msg)
+        frame = GridFrame(res, origin, cells.shape)
+        occupied, cost = planning_grid(
+            cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost
+        )
+        robot = ros.pose2d(pose_msg.pose.pose if self.config.pose_source == "odom" else pose_msg.pose)
+        start = frame.world_to_cell(robot.x, robot.y)
+        target = frame.world_to_cell(goal.pose.x, goal.pose.y)
+        if frame.contains(*start) and not cells[start] >= 100:
+            occupied = clear_disc(occupied, start, self.config.start_clearance_m / res)
+        remaining = None if goal.cells is None else self._remaining(goal.cells, start)
+        blocked_path = remaining is not None and bool(occupied[remaining[:, 0], remaining[:, 1]].any())
+        periodic = now - goal.last_plan_t >= self.config.replan_period_s
+        if remaining is not None and not blocked_path and not periodic:
+            self.grid_stamp = stamp
+            return
+        self.grid_stamp = stamp
+        algorithm = self.config.algorithm if self.config.algorithm != "jps" else "astar"
+        try:
+            plan = plan_grid(
+                occupied,
+                start,
+                target,
+                algorithm=algorithm,
+                heuristic=self.config.heuristic,
+                connectivity=self.config.connectivity,
+                weights=self.config.weights,
+                cost=cost,
+                rng=self.rng,
+            )
+        except PlanningError as exc:
+            error = next((code for cls, code in _ERRORS if isinstance(exc, cls)), "ERROR_INTERNAL")
+            self._end(now, "FAILED", error, str(exc))
+            return
+        goal.last_plan_t = now
+        # On a periodic check keep the current route unless the new one is clearly cheaper.
+        if (
+            remaining is not None
+            and not blocked_path
+            and plan.cost >= self.config.improvement * path_cost(remaining, cost)
+        ):
+            return
+        goal.cells = plan.cells
+        self.plan_pub.put(ros.path_msg(now, "map", frame.cells_to_world(plan.cells)))
+        if not goal.following:
+            goal.following = True
+            self._status(now, goal, "FOLLOWING")
+        self.log.debug(
+            "goal %d: plan of %d cells, cost %.1f (%d expanded)",
+            goal.goal_id,
+            len(plan.cells),
+            plan.cost,
+            plan.expanded,
+        )
+
+    @staticmethod
+    def _remaining(cells: Any, start: tuple[int, int]) -> Any:
+        """The part of a plan from the cell nearest the robot on."""
+        d = np.abs(cells - np.asarray(start)).max(axis=1)
+        return cells[int(np.argmin(d)) :]

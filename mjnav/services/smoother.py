@@ -1,0 +1,120 @@
+"""The smoother service: raw grid ``plan`` → smooth ``path``, never closer to obstacles than the plan allows.
+
+The plan is resampled at ``spacing_m`` and smoothed with the configured method (QP by default; gradient descent,
+SMA, WMA or a C2 spline). Every point may move at most ``max_deviation_m``, and never further than its clearance
+from the costmap's inscribed obstacles (minus ``margin_m``) allows, so the smooth path does not cut corners into
+walls. An empty plan (goal ended) gives an empty path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from mjnav.mapping import clearance_m
+from mjnav.mapping.frame import GridFrame
+from mjnav.msgs import ros
+from mjnav.planning.costmap import INSCRIBED
+from mjnav.runtime import Service
+from mjnav.smoothing import (
+    fit_spline,
+    gradient_descent,
+    moving_average,
+    qp_smooth,
+    resample,
+    triangular_weights,
+    weighted_moving_average,
+)
+
+
+@dataclass(frozen=True)
+class SmootherConfig:
+    """Smoother settings (``services/smoother.toml``).
+
+    Attributes:
+        rate_hz: loop rate (sim time).
+        method: ``qp``, ``gradient_descent``, ``sma``, ``wma`` or ``spline``.
+        spacing_m: resampling step of the plan before smoothing.
+        max_deviation_m: most any point may move (per coordinate).
+        margin_m: clearance kept on top of the costmap's inscribed radius.
+        w_smooth, w_data: weights of the smoothing cost (qp, gradient_descent).
+        window: points in the moving-average window (sma, wma), odd.
+    """
+
+    rate_hz: float = 10.0
+    method: Literal["qp", "gradient_descent", "sma", "wma", "spline"] = "qp"
+    spacing_m: float = 0.1
+    max_deviation_m: float = 0.3
+    margin_m: float = 0.03
+    w_smooth: float = 1.0
+    w_data: float = 0.05
+    window: int = 7
+
+    def __post_init__(self) -> None:
+        if not self.spacing_m > 0:
+            raise ValueError(f"spacing_m must be > 0, got {self.spacing_m}")
+        if not (self.max_deviation_m >= 0 and self.margin_m >= 0):
+            raise ValueError("max_deviation_m and margin_m must be >= 0")
+        if self.window < 3 or self.window % 2 == 0:
+            raise ValueError(f"window must be odd and >= 3, got {self.window}")
+
+
+class SmootherService(Service[SmootherConfig]):
+    """Turns each new plan into a smooth path."""
+
+    name = "smoother"
+    config_class = SmootherConfig
+
+    def configure(self) -> None:
+        self.plan = self.bus.subscribe("plan")
+        self.costmap = self.bus.subscribe("costmap")
+        self.path_pub = self.bus.publisher("path")
+
+    def step(self, now: float) -> None:
+        plan = self.plan.take()
+        if plan is None:
+            return
+        points = ros.path_points(plan)
+        if len(points) >= 2:
+            points = self.smooth(points)
+        self.path_pub.put(ros.path_msg(now, "map", points))
+
+    def allowed_deviation(self, points: Any) -> Any:
+        """(N,) distance each point may move: its clearance from inscribed obstacles minus the margin, metres."""
+        msg = self.costmap.latest()
+        if msg is None:
+            return np.zeros(len(points))
+        cells, res, origin = ros.grid_cells(msg)
+        frame = GridFrame(res, origin, cells.shape)
+        idx = frame.world_to_cells(points)
+        inside = (idx[:, 0] >= 0) & (idx[:, 0] < cells.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < cells.shape[1])
+        clear = np.zeros(len(points))
+        distance = clearance_m(cells >= INSCRIBED, res)
+        clear[inside] = distance[idx[inside, 0], idx[inside, 1]]
+        return np.maximum(clear - self.config.margin_m, 0.0)
+
+    def smooth(self, plan_points: Any) -> Any:
+        """Smooth (N, 2) plan points with the configured method; returns (M, 2) points."""
+        cfg = self.config
+        pts = resample(plan_points, cfg.spacing_m)
+        if len(pts) < 3:
+            return pts
+        allowed = self.allowed_deviation(pts)
+        if cfg.method == "spline":
+            return fit_spline(pts, continuity=2).sample(cfg.spacing_m)
+        if cfg.method == "qp":
+            return qp_smooth(
+                pts, max_deviation_m=cfg.max_deviation_m, w_smooth=cfg.w_smooth, w_data=cfg.w_data, clearance=allowed
+            )
+        if cfg.method == "gradient_descent":
+            out = gradient_descent(pts, cfg.w_smooth, cfg.w_data)
+        elif cfg.method == "sma":
+            out = moving_average(pts, cfg.window)
+        else:
+            out = weighted_moving_average(pts, triangular_weights(cfg.window))
+        # Same safety box as the QP: each point stays within min(max deviation, clearance/√2) per coordinate.
+        half = np.minimum(cfg.max_deviation_m, allowed / math.sqrt(2.0))[:, None]
+        return np.clip(out, pts - half, pts + half)

@@ -1,0 +1,61 @@
+"""The true map of a world: static obstacle footprints rasterised from the compiled MuJoCo model.
+
+Used to score navigation runs (the optimal path length for the robot's radius, clearance) — never by the robot.
+Static means welded to the world body; planes (the floor), the robot (geom group :data:`ROBOT_GEOM_GROUP`) and
+moving bodies are left out. Footprints are the geoms' projections on the ground plane: oriented rectangles for
+boxes, discs for cylinders, spheres, capsules and ellipsoids (their largest horizontal radius), and axis-aligned
+squares around the bounding sphere for meshes and other types.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from mjnav.mapping.frame import GridFrame
+from mjnav.sim.model import ROBOT_GEOM_GROUP
+
+_G = mujoco.mjtGeom
+
+
+def static_occupancy(model: mujoco.MjModel, data: mujoco.MjData, frame: GridFrame) -> NDArray[np.bool_]:
+    """(H, W) bool grid of ``frame``: True where a cell centre lies inside a static obstacle's footprint.
+
+    Args:
+        model, data: the compiled world; ``data`` must hold positions (call ``mj_forward`` first).
+        frame: the grid placement in the map (= MuJoCo world) frame.
+    """
+    h, w = frame.shape
+    centres = frame.cells_to_world(np.stack(np.meshgrid(np.arange(h), np.arange(w), indexing="ij"), -1).reshape(-1, 2))
+    xs, ys = centres[:, 0], centres[:, 1]
+    occupied = np.zeros(h * w, dtype=bool)
+    for g in range(model.ngeom):
+        gtype = int(model.geom_type[g])
+        body = int(model.geom_bodyid[g])
+        if gtype == _G.mjGEOM_PLANE or int(model.geom_group[g]) == ROBOT_GEOM_GROUP:
+            continue
+        if int(model.body_weldid[body]) != 0:  # moves: not part of the static map
+            continue
+        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:  # visual only
+            continue
+        cx, cy = float(data.geom_xpos[g, 0]), float(data.geom_xpos[g, 1])
+        size = model.geom_size[g]
+        rot = data.geom_xmat[g].reshape(3, 3)
+        dx, dy = xs - cx, ys - cy
+        if gtype == _G.mjGEOM_BOX:
+            # Footprint of an oriented box: |p·axis_i| <= half-extent projected, for the box's own x and y axes
+            # (exact for boxes rotated about z only, which is how walls and shelves are placed).
+            u = dx * rot[0, 0] + dy * rot[1, 0]
+            v = dx * rot[0, 1] + dy * rot[1, 1]
+            inside = (np.abs(u) <= size[0]) & (np.abs(v) <= size[1])
+        elif gtype in (_G.mjGEOM_CYLINDER, _G.mjGEOM_CAPSULE, _G.mjGEOM_SPHERE):
+            inside = dx * dx + dy * dy <= size[0] ** 2
+        elif gtype == _G.mjGEOM_ELLIPSOID:
+            r = max(size[0], size[1])
+            inside = dx * dx + dy * dy <= r * r
+        else:  # meshes and the rest: the square around the bounding sphere
+            r = float(model.geom_rbound[g])
+            inside = (np.abs(dx) <= r) & (np.abs(dy) <= r)
+        occupied |= inside
+    return occupied.reshape(h, w)
