@@ -14,6 +14,7 @@ from mjnav.mapping.errors import (
     MappingError,
     OutsideMapError,
 )
+from mjnav.mapping.frame import GridFrame
 from mjnav.mapping.grid import CellState, LogOddsModel, OccupancyGrid, log_odds_to_prob, prob_to_log_odds
 from mjnav.mapping.inflation import (
     INSCRIBED_COST,
@@ -24,6 +25,15 @@ from mjnav.mapping.inflation import (
     inflation_costmap,
 )
 from mjnav.mapping.lines import bresenham, diagonal_addition, supercover
+from mjnav.mapping.movingai import (
+    MovingAIFormatError,
+    MovingAIMap,
+    MovingAIScenario,
+    parse_movingai_map,
+    parse_movingai_scen,
+    read_movingai_map,
+    read_movingai_scen,
+)
 from mjnav.mapping.ros_map import RosMap, read_ros_map, write_ros_map
 
 __all__ = [
@@ -31,12 +41,16 @@ __all__ = [
     "LETHAL_COST",
     "MAX_DECAY_COST",
     "CellState",
+    "GridFrame",
     "InvalidGridError",
     "InvalidParameterError",
     "InvalidPoseError",
     "LogOddsModel",
     "MapFileError",
     "MappingError",
+    "MovingAIFormatError",
+    "MovingAIMap",
+    "MovingAIScenario",
     "OccupancyGrid",
     "OutsideMapError",
     "RosMap",
@@ -46,7 +60,11 @@ __all__ = [
     "inflate_mask",
     "inflation_costmap",
     "log_odds_to_prob",
+    "parse_movingai_map",
+    "parse_movingai_scen",
     "prob_to_log_odds",
+    "read_movingai_map",
+    "read_movingai_scen",
     "read_ros_map",
     "supercover",
     "write_ros_map",

@@ -224,9 +224,9 @@ def read_ros_map(yaml_path: str | Path) -> RosMap:
     """
     path = Path(yaml_path)
     try:
-        doc = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise MapFileError(f"{path}: invalid YAML: {exc}") from exc
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise MapFileError(f"{path}: not a map YAML file: {exc}") from exc
     if not isinstance(doc, dict):
         raise MapFileError(f"{path}: expected a YAML mapping, got {type(doc).__name__}")
     if "image" not in doc or not isinstance(doc["image"], str) or not doc["image"]:
@@ -308,7 +308,7 @@ def write_ros_map(
         image_name: file name of the image, written in the YAML's folder; default: the YAML's stem + ".pgm".
 
     Returns:
-        Path of the image written.
+        Path of the YAML file written (the image lies beside it).
 
     Raises:
         InvalidGridError: occupancy not a non-empty 2-D integer array of −1/0..100 values.
@@ -358,4 +358,4 @@ def write_ros_map(
         "free_thresh": float(free_thresh),
     }
     path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
-    return image_path
+    return path

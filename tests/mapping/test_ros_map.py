@@ -21,15 +21,15 @@ from mjnav.mapping import (
 
 def test_write_then_read_round_trip(tmp_path: Path) -> None:
     occ = np.array([[0, 100, -1, 0], [100, 0, 0, -1], [-1, -1, 100, 100]], dtype=np.int8)
-    image = write_ros_map(tmp_path / "office.yaml", occ, 0.05, (-1.5, 2.25, 0.1))
-    assert image == tmp_path / "office.pgm"
-    m = read_ros_map(tmp_path / "office.yaml")
+    written = write_ros_map(tmp_path / "office.yaml", occ, 0.05, (-1.5, 2.25, 0.1))
+    assert written == tmp_path / "office.yaml"
+    m = read_ros_map(written)
     np.testing.assert_array_equal(m.occupancy, occ)
     assert m.occupancy.dtype == np.int8
     assert m.resolution_m == 0.05
     assert m.origin_m == (-1.5, 2.25, 0.1)
     assert (m.occupied_thresh, m.free_thresh, m.negate, m.mode) == (0.65, 0.196, False, "trinary")
-    assert m.image_path == image
+    assert m.image_path == tmp_path / "office.pgm"
     assert (m.width_cells, m.height_cells) == (4, 3)
     np.testing.assert_array_equal(m.occupied_mask(), occ == 100)
     np.testing.assert_array_equal(m.occupied_mask(unknown_is_occupied=True), occ != 0)
@@ -184,3 +184,10 @@ def test_write_rejects_bad_input(tmp_path: Path, occupancy: np.ndarray, kwargs: 
         write_ros_map(tmp_path / "m.yaml", np.zeros((2, 2), dtype=np.int8), float("nan"), (0.0, 0.0))
     with pytest.raises(InvalidParameterError):
         write_ros_map(tmp_path / "m.yaml", np.zeros((2, 2), dtype=np.int8), 0.1, (0.0,))
+
+
+def test_reading_a_binary_file_as_yaml_is_a_map_file_error(tmp_path: Path) -> None:
+    bad = tmp_path / "map.pgm"
+    bad.write_bytes(b"P5\n2 2\n255\n\xfe\xff\x00\x01")
+    with pytest.raises(MapFileError, match="not a map YAML"):
+        read_ros_map(bad)

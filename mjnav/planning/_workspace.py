@@ -1,0 +1,87 @@
+"""Per-thread search memory reused across queries (internal).
+
+A search over a padded grid of n nodes needs per-node state (cost-so-far, parent, open/closed). Allocating and
+initialising it for every query costs O(n) and, for large maps, mostly page faults on fresh memory — more
+than a whole long search on a 256×256 map. Instead each thread keeps one :class:`Workspace` that grows to the
+largest grid seen (up to :data:`MAX_CACHED_NODES`; larger grids get a throw-away workspace). Node records carry
+a *tag* naming the search that wrote them (see :mod:`mjnav.planning._kernels`), so records of earlier searches
+read as unvisited and starting a search is O(1): ``base += TAG_SPAN``.
+
+Memory per node: 16 (record) + 8 (BFS queue) + 1 (map copy) bytes, plus the heap (24 bytes per entry,
+initially n / 4 entries, doubled on overflow).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mjnav.planning._kernels import NODE_DTYPE, TAG_SPAN
+
+#: Grids up to this many (padded) nodes keep their workspace between calls (≈ 31 bytes per node).
+MAX_CACHED_NODES = 1 << 24
+
+_TAG_LIMIT = int(np.iinfo(np.int32).max) - 2 * TAG_SPAN
+
+
+class Workspace:
+    """Reusable per-node arrays for one thread; see the module docstring.
+
+    Attributes:
+        capacity: number of nodes the arrays hold.
+        nodes: node records (:data:`~mjnav.planning._kernels.NODE_DTYPE`).
+        queue: int64 FIFO storage (BFS), one slot per node.
+        blocked: uint8 padded grid buffer.
+        bits: uint64 bit-row buffer of the padded grid (jump point search), grown on demand.
+        keys, subs, items: binary-heap storage (``items`` doubles as the DFS stack); a kernel that fills it
+            reports an overflow and the caller retries after :meth:`grow_heap`.
+        base: the tag base of the current search.
+    """
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.nodes: NDArray[np.void] = np.zeros(capacity, NODE_DTYPE)
+        self.queue: NDArray[np.int64] = np.empty(capacity, np.int64)
+        self.blocked: NDArray[np.uint8] = np.empty(capacity, np.uint8)
+        self.bits: NDArray[np.uint64] = np.empty(0, np.uint64)
+        heap = max(1024, capacity // 4)
+        self.keys: NDArray[np.float64] = np.empty(heap, np.float64)
+        self.subs: NDArray[np.float64] = np.empty(heap, np.float64)
+        self.items: NDArray[np.int64] = np.empty(heap, np.int64)
+        self.base = 0
+
+    def begin(self) -> int:
+        """Start a new search: returns its tag base (tags of older searches are all smaller)."""
+        self.base += TAG_SPAN
+        if self.base >= _TAG_LIMIT:
+            self.nodes["tag"] = 0
+            self.base = TAG_SPAN
+        return self.base
+
+    def grow_heap(self) -> None:
+        """Double the heap (and DFS stack) storage; its contents are discarded."""
+        n = 2 * self.keys.shape[0]
+        self.keys = np.empty(n, np.float64)
+        self.subs = np.empty(n, np.float64)
+        self.items = np.empty(n, np.int64)
+
+
+_local = threading.local()
+
+
+def get_workspace(n_nodes: int) -> Workspace:
+    """The calling thread's workspace with room for ``n_nodes`` nodes (a fresh one above the cache limit)."""
+    if n_nodes > MAX_CACHED_NODES:
+        return Workspace(n_nodes)
+    ws: Workspace | None = getattr(_local, "ws", None)
+    if ws is None or ws.capacity < n_nodes:
+        ws = Workspace(max(n_nodes, 1024))
+        _local.ws = ws
+    return ws
+
+
+def release_workspace() -> None:
+    """Drop the calling thread's cached workspace (frees its memory)."""
+    _local.ws = None
