@@ -88,8 +88,12 @@ class ControllerService(Service[ControllerConfig]):
         self.status_cls = msg_class(_STATUS)
         self.path: Any = None
         self.goal: Any = None  # the GoalStatus that made the current goal active
+        self.finished: set[int] = set()  # goal ids that ended (a late heartbeat must not revive them)
         self.speed = 0.0
         self.stopped_reason = ""
+        # Load the compiled kernels now, not when the first path arrives.
+        self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
+        self.pursuit.reset()
 
     def _stop(self, reason: str) -> None:
         self.cmd_pub.put(ros.twist(0.0, 0.0))
@@ -101,15 +105,14 @@ class ControllerService(Service[ControllerConfig]):
     def _track_goal(self) -> None:
         cls = self.status_cls
         for status in self.status_sub.drain():
-            if status.state == cls.STATE_FOLLOWING:
-                self.goal = status
-                self.pursuit.reset()
-            elif (
-                self.goal is not None
-                and status.goal_id == self.goal.goal_id
-                and status.state in (cls.STATE_FAILED, cls.STATE_CANCELED, cls.STATE_REACHED)
-            ):
-                self.goal = None
+            if status.state == cls.STATE_FOLLOWING and status.goal_id not in self.finished:
+                if self.goal is None or status.goal_id != self.goal.goal_id:
+                    self.goal = status
+                    self.pursuit.reset()
+            elif status.state in (cls.STATE_FAILED, cls.STATE_CANCELED, cls.STATE_REACHED):
+                self.finished.add(status.goal_id)
+                if self.goal is not None and status.goal_id == self.goal.goal_id:
+                    self.goal = None
 
     def step(self, now: float) -> None:
         self._track_goal()
@@ -153,6 +156,7 @@ class ControllerService(Service[ControllerConfig]):
     def _report_reached(self, now: float) -> None:
         goal = self.goal
         self.goal = None
+        self.finished.add(goal.goal_id)
         cls = self.status_cls
         self.status_pub.put(
             cls(

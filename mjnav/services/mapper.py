@@ -96,6 +96,8 @@ class MapperService(Service[MapperConfig]):
         self.next_publish = 0.0
         self.scans = 0
         self.skipped = 0
+        # Load the compiled scan integration now, on a scratch grid.
+        OccupancyGrid(8, 8, 0.1).integrate_scan((0.4, 0.4, 0.0), np.zeros(1), np.ones(1), 1.0)
 
     def _on_ground_truth(self, msg: Any) -> None:
         self.poses.add(ros.seconds(msg.header.stamp), ros.pose2d(msg.pose))

@@ -49,6 +49,8 @@ class PlannerConfig:
         start_clearance_m: free a disc of this radius around the robot before planning (it may stand in the
             inscribed band after passing close to a wall).
         replan_period_s: how often (sim s) a cheaper route is looked for while following.
+        heartbeat_period_s: how often (sim s) the current plan and the ``following`` status are re-sent, so a
+            restarted smoother or controller picks the goal up again.
         improvement: switch to a new route only when it is cheaper than this fraction of the remaining one.
         seed: seed of the potential field's random escapes.
     """
@@ -63,6 +65,7 @@ class PlannerConfig:
     unknown_cost: float = 0.5
     start_clearance_m: float = 0.25
     replan_period_s: float = 2.0
+    heartbeat_period_s: float = 1.0
     improvement: float = 0.9
     seed: int = 0
 
@@ -91,7 +94,9 @@ class _Goal:
     cells: Any = None  # (N, 2) current plan cells
     cost_grid: Any = None
     last_plan_t: float = -math.inf
+    last_sent_t: float = -math.inf
     following: bool = False
+    path_msg: Any = None
 
 
 class PlannerService(Service[PlannerConfig]):
@@ -113,6 +118,19 @@ class PlannerService(Service[PlannerConfig]):
         self.goal: _Goal | None = None
         self.next_id = 1
         self.grid_stamp = -1.0
+        # Load the compiled search kernels now, not when the first goal arrives.
+        free = np.zeros((4, 4), dtype=bool)
+        plan_grid(
+            free,
+            (0, 0),
+            (3, 3),
+            algorithm=self.config.algorithm,
+            heuristic=self.config.heuristic,
+            connectivity=self.config.connectivity,
+            weights=self.config.weights,
+            cost=None if self.config.algorithm == "jps" else np.zeros((4, 4)),
+            rng=self.rng,
+        )
 
     # ----------------------------------------------------------------------------------------------- status
 
@@ -154,6 +172,14 @@ class PlannerService(Service[PlannerConfig]):
             self._accept(now, msg)
         if self.goal is not None:
             self._plan(now)
+        goal = self.goal
+        if goal is not None and goal.following and now - goal.last_sent_t >= self.config.heartbeat_period_s:
+            self._send(now, goal)
+
+    def _send(self, now: float, goal: _Goal) -> None:
+        self.plan_pub.put(goal.path_msg)
+        self._status(now, goal, "FOLLOWING")
+        goal.last_sent_t = now
 
     def _accept(self, now: float, msg: Any) -> None:
         if self.goal is not None:
@@ -222,10 +248,9 @@ class PlannerService(Service[PlannerConfig]):
         ):
             return
         goal.cells = plan.cells
-        self.plan_pub.put(ros.path_msg(now, "map", frame.cells_to_world(plan.cells)))
-        if not goal.following:
-            goal.following = True
-            self._status(now, goal, "FOLLOWING")
+        goal.path_msg = ros.path_msg(now, "map", frame.cells_to_world(plan.cells))
+        goal.following = True
+        self._send(now, goal)
         self.log.debug(
             "goal %d: plan of %d cells, cost %.1f (%d expanded)",
             goal.goal_id,

@@ -140,6 +140,15 @@ class SimBridge:
                 sim.set_command(cmd.linear.x, cmd.angular.z)
                 self.commands_applied += 1
             self._pub["clock"].put(ros.clock(t))
+        if self._odom.due(t):
+            est = sim.odometry()
+            stamp = est.stamp_s
+            self._pub["odom"].put(ros.odometry(stamp, est.pose, est.v_mps, est.omega_radps))
+            self._pub["tf"].put(ros.tf_message(ros.transform_stamped(stamp, "odom", "base_link", est.pose)))
+            wheels = sim.wheel_states()
+            self._pub["joint_states"].put(ros.joint_state(t, wheels.names, wheels.position_rad, wheels.velocity_radps))
+            self._pub["ground_truth"].put(ros.pose_stamped(t, "map", sim.ground_truth_pose()))
+        # Scans after the poses of the same tick, so a mapper always finds the pose of a scan's stamp.
         scan = sim.pop_scan()
         if scan is not None:
             cfg = scan.config
@@ -155,14 +164,6 @@ class SimBridge:
                     ranges_m=scan.ranges_m,
                 )
             )
-        if self._odom.due(t):
-            est = sim.odometry()
-            stamp = est.stamp_s
-            self._pub["odom"].put(ros.odometry(stamp, est.pose, est.v_mps, est.omega_radps))
-            self._pub["tf"].put(ros.tf_message(ros.transform_stamped(stamp, "odom", "base_link", est.pose)))
-            wheels = sim.wheel_states()
-            self._pub["joint_states"].put(ros.joint_state(t, wheels.names, wheels.position_rad, wheels.velocity_radps))
-            self._pub["ground_truth"].put(ros.pose_stamped(t, "map", sim.ground_truth_pose()))
         if self._status.due(t):
             wall = time.monotonic() - self._wall0
             self._pub["sim_status"].put(

@@ -72,6 +72,9 @@ class SmootherService(Service[SmootherConfig]):
         self.plan = self.bus.subscribe("plan")
         self.costmap = self.bus.subscribe("costmap")
         self.path_pub = self.bus.publisher("path")
+        # Load the compiled kernels now, not when the first plan arrives.
+        warm = np.column_stack((np.linspace(0.0, 1.0, 12), 0.05 * np.sin(np.linspace(0.0, 6.0, 12))))
+        self.smooth(warm)
 
     def step(self, now: float) -> None:
         plan = self.plan.take()

@@ -1,0 +1,237 @@
+"""Navigation end to end: the real stack (`mjnav up` / `mjnav demo`) as processes on loopback Zenoh."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjnav.bus import Bus, BusConfig, wait_until
+from mjnav.mapping import write_ros_map
+from mjnav.mapping.frame import GridFrame
+from mjnav.msgs import decode, encode, from_dict, msg_class, validate
+from mjnav.msgs.codec import MessageError
+from mjnav.runtime.mission import MissionClient
+from mjnav.sim import Simulator
+from mjnav.sim.truth import static_occupancy
+from tests.conftest import REPO, free_port
+
+SERVICES = {"sim", "mapper", "planner", "smoother", "controller"}
+STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
+RTF = 4.0
+
+
+def _mjnav(*args: str) -> subprocess.Popen[str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}
+    return subprocess.Popen(
+        [sys.executable, "-m", "mjnav", *args],
+        cwd=REPO,
+        env=env,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+
+
+@contextmanager
+def running_stack(*sets: str) -> Iterator[tuple[Bus, MissionClient, subprocess.Popen[str], list[str]]]:
+    """`mjnav up` with the shipped stack; yields a bus on its router, a mission client, the process, its output."""
+    port = free_port()
+    args = ["up", "--port", str(port), "--headless", "--set", f"sim.rtf={RTF}"]
+    for item in sets:
+        args += ["--set", item]
+    proc = _mjnav(*args)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)  # type: ignore[arg-type]
+    reader.start()
+    bus = Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",)))
+    try:
+        client = MissionClient(bus)
+        assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
+        assert client.truth.wait(60.0) is not None
+        yield bus, client, proc, lines
+    finally:
+        bus.close()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        reader.join(5)
+    assert proc.returncode == 0, "".join(lines)[-3000:]
+
+
+def _true_map(world: str, path: Path) -> Path:
+    """The world's static obstacles as a ROS map (what a previous mapping run would have produced)."""
+    sim = Simulator(world, lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    frame = GridFrame(0.05, (-10.0, -10.0), (400, 400))
+    occupied = static_occupancy(sim.model, sim.data, frame)
+    return write_ros_map(path, np.where(occupied, 100, 0).astype(np.int8), 0.05, (-10.0, -10.0, 0.0))
+
+
+def test_demo_reaches_the_rooms_goal_from_an_unknown_map(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = _mjnav(
+        "demo",
+        "--world",
+        "rooms",
+        "--rtf",
+        str(RTF),
+        "--json",
+        "--out",
+        str(out),
+        "--headless",
+        "--port",
+        str(free_port()),
+    )
+    stdout, _ = proc.communicate(timeout=600)
+    assert proc.returncode == 0, stdout[-3000:]
+    summary = json.loads(stdout.strip().splitlines()[-1])
+    assert summary["reached"] is True and summary["collisions"] == 0
+    assert summary["v_max_mps"] == 0.5
+    assert 0 < summary["optimal_length_m"] <= summary["path_length_m"] * 1.05
+    assert summary["min_clearance_m"] > 0.0
+    assert json.loads((out / "summary.json").read_text()) == summary
+    assert (out / "map.yaml").is_file() and (out / "map.pgm").is_file()
+
+
+def test_unreachable_and_occupied_goals_fail_with_the_right_reason(tmp_path: Path) -> None:
+    prior = _true_map("rooms", tmp_path / "prior.yaml")
+    with running_stack(f"mapper.prior_map={json.dumps(str(prior))}") as (bus, client, _proc, lines):
+        outside = client.run_goal(40.0, 40.0, timeout_s=30.0, wall_timeout_s=60.0)
+        assert (outside.result, outside.error_code) == ("failed", STATUS.ERROR_OUTSIDE_MAP), outside
+        in_wall = client.run_goal(0.0, 0.0, timeout_s=30.0, wall_timeout_s=60.0)  # the centre of the rooms' cross
+        assert (in_wall.result, in_wall.error_code) == ("failed", STATUS.ERROR_GOAL_OCCUPIED), in_wall
+        enclosed = client.run_goal(-7.5, 0.0, timeout_s=30.0, wall_timeout_s=60.0)  # outside the outer walls
+        assert (enclosed.result, enclosed.error_code) == ("failed", STATUS.ERROR_NO_PATH), enclosed
+        assert SERVICES <= set(bus.alive_services(1.0)), "a service died"
+        assert "Traceback" not in "".join(lines)
+        reached = client.run_goal(-1.5, -3.5, timeout_s=60.0, wall_timeout_s=120.0)
+        assert reached.result == "reached", reached
+
+
+def test_killing_the_controller_stops_the_robot_and_the_mission_still_completes() -> None:
+    with running_stack() as (bus, client, _proc, lines):
+        status = bus.subscribe("status", service="controller")
+        cmd = bus.subscribe("cmd_vel")
+        odom = bus.subscribe("odom")
+        outcome: list[object] = []
+        runner = threading.Thread(
+            target=lambda: outcome.append(client.run_goal(3.8, 2.2, timeout_s=200.0, wall_timeout_s=300.0))
+        )
+        runner.start()
+        try:
+            assert odom.wait(120.0, lambda m: m.twist.twist.linear.x > 0.3) is not None, "the robot never drove"
+            pid = status.wait(10.0)
+            assert pid is not None
+            os.kill(pid.pid, signal.SIGKILL)
+            killed_at = client.now()
+            # No command can arrive now; the sim's watchdog must stop the wheels within 0.5 s of the last one.
+            assert client.clock.wait(30.0, lambda c: c.clock.sec + c.clock.nanosec / 1e9 >= killed_at + 0.8)
+            last_cmd = cmd.latest()
+            assert last_cmd is not None
+            speed = odom.latest().twist.twist.linear.x
+            assert abs(speed) < 0.02, f"still moving at {speed} m/s 0.8 s after the controller died"
+            restarted = status.wait(60.0, lambda s: s.pid != pid.pid)
+            assert restarted is not None, "the launcher did not restart the controller"
+        finally:
+            runner.join(400.0)
+        assert outcome and outcome[0].result == "reached", outcome  # type: ignore[attr-defined]
+    text = "".join(lines)
+    assert "controller exited" in text and "restarting" in text
+
+
+def _fuzz_payloads(msgtype: str, rng: np.random.Generator, n: int) -> list[bytes]:
+    """``n`` payloads that are NOT valid ``msgtype`` messages: random bytes, truncations, NaN-laden messages."""
+    template = encode(_nan_laden(msgtype, rng))
+    out: list[bytes] = []
+    while len(out) < n:
+        kind = len(out) % 3
+        if kind == 0:
+            data = rng.integers(0, 256, int(rng.integers(0, 300)), dtype=np.uint8).tobytes()
+        elif kind == 1:
+            data = encode(_nan_laden(msgtype, rng))[: int(rng.integers(0, max(1, len(template) - 1)))]
+        else:
+            data = encode(_nan_laden(msgtype, rng))
+        try:
+            validate(decode(data, msgtype))
+        except MessageError:
+            out.append(data)
+    return out
+
+
+def _nan_laden(msgtype: str, rng: np.random.Generator) -> object:
+    """A structurally valid message whose float fields are NaN where it has any (else all defaults)."""
+    samples = {
+        "geometry_msgs/msg/Twist": {"linear": {"x": math.nan}, "angular": {"z": float(rng.normal())}},
+        "geometry_msgs/msg/PoseStamped": {"pose": {"position": {"x": math.nan}, "orientation": {"w": 1.0}}},
+        "sensor_msgs/msg/LaserScan": {"range_min": math.nan, "range_max": 10.0, "ranges": [1.0] * 360},
+        "nav_msgs/msg/OccupancyGrid": {"info": {"resolution": math.nan, "width": 2, "height": 2}, "data": [0] * 4},
+        "nav_msgs/msg/Path": {"poses": [{"pose": {"position": {"x": math.nan}, "orientation": {"w": 1.0}}}]},
+        "mjnav_msgs/msg/GoalStatus": {"goal": {"pose": {"position": {"y": math.nan}, "orientation": {"w": 1.0}}}},
+    }
+    return from_dict(msgtype, samples.get(msgtype, {}))
+
+
+# Keys each service subscribes to (every service on sim time also subscribes to clock).
+SUBSCRIBED = {
+    "sim": ["cmd_vel"],
+    "mapper": ["clock", "scan", "ground_truth"],
+    "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "ground_truth"],
+    "smoother": ["clock", "plan", "costmap"],
+    "controller": ["clock", "path", "ground_truth", "scan", "goal_status"],
+}
+FUZZ_PER_KEY = 1000
+
+
+def test_fuzzing_every_subscribed_key_is_counted_and_survived() -> None:
+    import zenoh
+
+    from mjnav.msgs import topic
+
+    rng = np.random.default_rng(2024)
+    keys = sorted({k for ks in SUBSCRIBED.values() for k in ks})
+    with running_stack() as (bus, client, proc, lines):
+        status = bus.subscribe("status", service="*")
+        assert wait_until(lambda: len(status.latest_by_key()) == len(SUBSCRIBED), 30.0)
+        before = {s.service: s.messages_rejected for s in status.latest_by_key().values()}
+        for name in keys:
+            payloads = _fuzz_payloads(topic(name).msgtype, rng, FUZZ_PER_KEY)
+            pub = bus.session.declare_publisher(bus.key(name), congestion_control=zenoh.CongestionControl.BLOCK)
+            for data in payloads:
+                pub.put(data)
+            pub.undeclare()
+        expected = {svc: before[svc] + FUZZ_PER_KEY * len(ks) for svc, ks in SUBSCRIBED.items()}
+
+        def counted() -> bool:
+            now = {s.service: s.messages_rejected for s in status.latest_by_key().values()}
+            return all(now.get(svc, 0) >= n for svc, n in expected.items())
+
+        assert wait_until(counted, 60.0), {s.service: s.messages_rejected for s in status.latest_by_key().values()}
+        final = {s.service: s.messages_rejected for s in status.latest_by_key().values()}
+        assert final == expected
+        assert SERVICES <= set(bus.alive_services(1.0)) and proc.poll() is None
+        assert "restarting" not in "".join(lines)
+        outcome = client.run_goal(3.8, 2.2, timeout_s=200.0, wall_timeout_s=300.0)
+        assert outcome.result == "reached", outcome
+
+
+@pytest.mark.parametrize("seed", [0])
+def test_warehouse_with_moving_obstacles_has_no_collision(seed: int) -> None:
+    with running_stack("sim.world=warehouse", f"sim.seed={seed}") as (_bus, client, _proc, _lines):
+        outcome = client.run_goal(5.0, 3.0, timeout_s=200.0, wall_timeout_s=300.0)
+        assert outcome.result == "reached", outcome
+        assert client.collisions() == 0
