@@ -200,33 +200,13 @@ def _robot_radius(info: Any) -> float:
 
 def _optimal_length(info: Any, outcomes: list[Any]) -> float:
     """Sum over the goals of the shortest collision-free path on the true map (NaN when it cannot be computed)."""
-    import mujoco
-
-    from mjnav.mapping.frame import GridFrame
     from mjnav.planning import PlanningError
-    from mjnav.planning.reference import shortest_path_length_m
-    from mjnav.sim import Simulator
-    from mjnav.sim.truth import static_occupancy
+    from mjnav.sim.truth import shortest_length_m
 
-    sim = Simulator(info.path, lidar=None)
-    mujoco.mj_forward(sim.model, sim.data)
-    points = [o.start for o in outcomes] + [o.goal for o in outcomes]
-    xs = [p[0] for p in points if math.isfinite(p[0])]
-    ys = [p[1] for p in points if math.isfinite(p[1])]
-    if not xs:
+    try:
+        return sum(shortest_length_m(info.path, o.start, o.goal) for o in outcomes)
+    except PlanningError:
         return math.nan
-    x0, y0, x1, y1 = info.bounds_m or (min(xs), min(ys), max(xs), max(ys))
-    x0, y0, x1, y1 = min(x0, *xs) - 1.0, min(y0, *ys) - 1.0, max(x1, *xs) + 1.0, max(y1, *ys) + 1.0
-    res = 0.05
-    frame = GridFrame(res, (x0, y0), (math.ceil((y1 - y0) / res), math.ceil((x1 - x0) / res)))
-    obstacles = static_occupancy(sim.model, sim.data, frame)
-    total = 0.0
-    for o in outcomes:
-        try:
-            total += shortest_path_length_m(obstacles, frame, o.start, o.goal, sim.robot_radius_m)
-        except PlanningError:
-            return math.nan
-    return total
 
 
 def _print_summary(data: dict[str, Any], out: Path | None) -> None:

@@ -9,6 +9,9 @@ squares around the bounding sphere for meshes and other types.
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
@@ -59,3 +62,33 @@ def static_occupancy(model: mujoco.MjModel, data: mujoco.MjData, frame: GridFram
             inside = (np.abs(dx) <= r) & (np.abs(dy) <= r)
         occupied |= inside
     return occupied.reshape(h, w)
+
+
+def shortest_length_m(
+    world: str | Path, start_xy: tuple[float, float], goal_xy: tuple[float, float], *, resolution_m: float = 0.05
+) -> float:
+    """Near-shortest collision-free path length for the robot of ``world`` on its true (static) map, metres.
+
+    The grid covers the world's static obstacles, the start and the goal with a 1 m border; see
+    :func:`mjnav.planning.reference.shortest_path_length_m` for the method.
+
+    Raises:
+        mjnav.planning.PlanningError: start or goal blocked, or no path.
+    """
+    from mjnav.planning.reference import shortest_path_length_m
+    from mjnav.sim.simulator import Simulator
+    from mjnav.sim.worlds import world_info
+
+    info = world_info(world)
+    sim = Simulator(info.path, lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    xs = [start_xy[0], goal_xy[0]]
+    ys = [start_xy[1], goal_xy[1]]
+    if info.bounds_m is not None:
+        xs += [info.bounds_m[0], info.bounds_m[2]]
+        ys += [info.bounds_m[1], info.bounds_m[3]]
+    x0, y0 = min(xs) - 1.0, min(ys) - 1.0
+    shape = (math.ceil((max(ys) + 1.0 - y0) / resolution_m), math.ceil((max(xs) + 1.0 - x0) / resolution_m))
+    frame = GridFrame(resolution_m, (x0, y0), shape)
+    obstacles = static_occupancy(sim.model, sim.data, frame)
+    return shortest_path_length_m(obstacles, frame, start_xy, goal_xy, sim.robot_radius_m)

@@ -22,6 +22,7 @@ from mjnav.mapping import write_ros_map
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import decode, encode, from_dict, msg_class, validate
 from mjnav.msgs.codec import MessageError
+from mjnav.msgs.ros import seconds as ros_seconds
 from mjnav.runtime.mission import MissionClient
 from mjnav.sim import Simulator
 from mjnav.sim.truth import static_occupancy
@@ -126,26 +127,28 @@ def test_unreachable_and_occupied_goals_fail_with_the_right_reason(tmp_path: Pat
 def test_killing_the_controller_stops_the_robot_and_the_mission_still_completes() -> None:
     with running_stack() as (bus, client, _proc, lines):
         status = bus.subscribe("status", service="controller")
-        cmd = bus.subscribe("cmd_vel")
-        odom = bus.subscribe("odom")
+        speeds: list[tuple[float, float]] = []  # (sim time, forward speed) from the true pose's odometry
+        bus.subscribe("odom", callback=lambda m: speeds.append((ros_seconds(m.header.stamp), m.twist.twist.linear.x)))
+        commands: list[float] = []  # sim time at which each cmd_vel was seen
+        bus.subscribe("cmd_vel", callback=lambda _m: commands.append(client.now()))
         outcome: list[object] = []
         runner = threading.Thread(
             target=lambda: outcome.append(client.run_goal(3.8, 2.2, timeout_s=200.0, wall_timeout_s=300.0))
         )
         runner.start()
         try:
-            assert odom.wait(120.0, lambda m: m.twist.twist.linear.x > 0.3) is not None, "the robot never drove"
-            pid = status.wait(10.0)
-            assert pid is not None
-            os.kill(pid.pid, signal.SIGKILL)
+            assert wait_until(lambda: bool(speeds) and speeds[-1][1] > 0.3, 120.0), "the robot never drove"
+            first = status.wait(10.0)
+            assert first is not None
+            os.kill(first.pid, signal.SIGKILL)
             killed_at = client.now()
-            # No command can arrive now; the sim's watchdog must stop the wheels within 0.5 s of the last one.
-            assert client.clock.wait(30.0, lambda c: c.clock.sec + c.clock.nanosec / 1e9 >= killed_at + 0.8)
-            last_cmd = cmd.latest()
-            assert last_cmd is not None
-            speed = odom.latest().twist.twist.linear.x
-            assert abs(speed) < 0.02, f"still moving at {speed} m/s 0.8 s after the controller died"
-            restarted = status.wait(60.0, lambda s: s.pid != pid.pid)
+            assert client.clock.wait(30.0, lambda c: ros_seconds(c.clock) >= killed_at + 1.5) is not None
+            last_cmd = max(t for t in commands if t <= killed_at + 0.2)
+            stopped = [t for t, v in speeds if t > last_cmd and abs(v) < 0.02]
+            assert stopped, "the robot never stopped after the controller died"
+            # Watchdog at 0.5 s after the last command (applied within one 10 ms clock tick), then braking.
+            assert stopped[0] - last_cmd <= 0.7, f"stopped {stopped[0] - last_cmd:.2f} s after the last command"
+            restarted = status.wait(60.0, lambda s: s.pid != first.pid)
             assert restarted is not None, "the launcher did not restart the controller"
         finally:
             runner.join(400.0)
@@ -158,8 +161,10 @@ def _fuzz_payloads(msgtype: str, rng: np.random.Generator, n: int) -> list[bytes
     """``n`` payloads that are NOT valid ``msgtype`` messages: random bytes, truncations, NaN-laden messages."""
     template = encode(_nan_laden(msgtype, rng))
     out: list[bytes] = []
+    attempt = 0
     while len(out) < n:
-        kind = len(out) % 3
+        kind = attempt % 3
+        attempt += 1
         if kind == 0:
             data = rng.integers(0, 256, int(rng.integers(0, 300)), dtype=np.uint8).tobytes()
         elif kind == 1:
