@@ -11,13 +11,17 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.mjnav-installed
 # Offscreen rendering for MuJoCo: EGL (Mesa, software) or OSMesa.
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libosmesa6
-DEMO_DURATION ?= 20
+DEMO_WORLD ?= rooms
+DEMO_RTF ?= 2
 PYTEST_ARGS ?=
 
 .PHONY: demo test setup system-deps lint bench clean
 
+# The mission: the robot maps the world from scratch and drives to its goal; video, map and summary in runs/.
 demo: setup
-	$(BIN)/mjnav up --headless --duration $(DEMO_DURATION)
+	@out=runs/$$(date +%Y%m%d-%H%M%S); \
+	$(BIN)/mjnav demo --world $(DEMO_WORLD) --rtf $(DEMO_RTF) --record --headless --out $$out; code=$$?; \
+	echo "make demo: video, map and summary in $$out/"; exit $$code
 
 test: lint
 	$(BIN)/pytest $(PYTEST_ARGS)

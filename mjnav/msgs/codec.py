@@ -245,28 +245,61 @@ def _build_base(base: str, value: Any, where: str) -> Any:
 NONFINITE_ALLOWED = frozenset({"ranges", "intensities"})
 
 
+@cache
+def _finite_plan(typename: str) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
+    """What :func:`check_finite` looks at in ``typename``: float scalars, nested messages holding floats, float
+    arrays, and sequences of messages holding floats (message types without floats are pruned)."""
+    _, fields = typestore().fielddefs[typename]
+    scalars, nested, arrays, seqs = [], [], [], []
+    desc: Any
+    for name, (nodetype, desc) in fields:
+        if nodetype == Nodetype.BASE:
+            if desc[0] in _FLOATS:
+                scalars.append(name)
+        elif nodetype == Nodetype.NAME:
+            if _has_floats(desc):
+                nested.append(name)
+        elif name not in NONFINITE_ALLOWED:
+            (subtype, subdesc), _ = desc
+            if subtype == Nodetype.BASE and subdesc[0] in _FLOATS:
+                arrays.append(name)
+            elif subtype == Nodetype.NAME and _has_floats(subdesc):
+                seqs.append(name)
+    return tuple(scalars), tuple(nested), tuple(arrays), tuple(seqs)
+
+
+@cache
+def _has_floats(typename: str) -> bool:
+    return any(_finite_plan(typename))
+
+
 def check_finite(msg: Any, where: str = "") -> None:
     """Raise :class:`MessageError` if any float field (recursively) is NaN or infinite.
 
     Fields named in :data:`NONFINITE_ALLOWED` (laser ranges) are exempt: REP-117 gives ±inf and NaN meanings there.
     """
-    typename = msg.__msgtype__
-    _, fields = typestore().fielddefs[typename]
-    prefix = where or typename
-    desc: Any
-    for name, (nodetype, desc) in fields:
+    bad = _first_nonfinite(msg)
+    if bad is not None:
+        raise MessageError(f"{where or msg.__msgtype__}.{bad}")
+
+
+def _first_nonfinite(msg: Any) -> str | None:
+    """Path and value of the first non-finite float field (e.g. ``"linear.x is nan"``), or None."""
+    scalars, nested, arrays, seqs = _finite_plan(msg.__msgtype__)
+    for name in scalars:
         value = getattr(msg, name)
-        path = f"{prefix}.{name}"
-        if nodetype == Nodetype.BASE:
-            if desc[0] in _FLOATS and not math.isfinite(value):
-                raise MessageError(f"{path} is {value}")
-        elif nodetype == Nodetype.NAME:
-            check_finite(value, path)
-        elif name not in NONFINITE_ALLOWED:
-            (subtype, subdesc), _ = desc
-            if subtype == Nodetype.BASE:
-                if subdesc[0] in _FLOATS and not np.isfinite(value).all():
-                    raise MessageError(f"{path} holds non-finite values")
-            elif subtype == Nodetype.NAME:
-                for i, item in enumerate(value):
-                    check_finite(item, f"{path}[{i}]")
+        if not math.isfinite(value):
+            return f"{name} is {value}"
+    for name in nested:
+        bad = _first_nonfinite(getattr(msg, name))
+        if bad is not None:
+            return f"{name}.{bad}"
+    for name in arrays:
+        if not np.isfinite(getattr(msg, name)).all():
+            return f"{name} holds non-finite values"
+    for name in seqs:
+        for i, item in enumerate(getattr(msg, name)):
+            bad = _first_nonfinite(item)
+            if bad is not None:
+                return f"{name}[{i}].{bad}"
+    return None
