@@ -65,7 +65,8 @@ def numpy_trace(
     r = ranges * inv
     max_r = max_range_m * inv
     with np.errstate(invalid="ignore"):
-        valid = np.isfinite(angles) & ~np.isnan(r) & (r >= min_range_m * inv) & (r > 0.0)
+        r = np.where(np.isnan(r), np.inf, r)  # NaN = no return, like +inf
+        valid = np.isfinite(angles) & (r >= min_range_m * inv) & (r > 0.0)
         is_hit = r < max_r
     a = angles[valid]
     r = np.where(is_hit[valid], r[valid], max_r)

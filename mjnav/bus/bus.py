@@ -143,13 +143,11 @@ class Subscription:
         row: Topic,
         key: str,
         callback: Callable[[Any], None] | None,
-        check: Callable[[Any], None] | None,
     ) -> None:
         self.topic = row
         self.key = key
         self._bus = bus
         self._callback = callback
-        self._check = check
         self._cond = threading.Condition()
         self._latest: Any = None
         self._latest_key = ""
@@ -157,7 +155,6 @@ class Subscription:
         self._queue: deque[Any] = deque()
         self._fresh = False
         self.count = 0
-        self.last_receive_monotonic = 0.0
         self._sub = bus.session.declare_subscriber(key, self._on_sample)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
@@ -168,8 +165,6 @@ class Subscription:
             try:
                 msg = codec.decode(sample.payload.to_bytes(), self.topic.msgtype)
                 validate(msg)
-                if self._check is not None:
-                    self._check(msg)
             except codec.MessageError as exc:
                 reason = str(exc)
         if reason is not None:
@@ -179,11 +174,10 @@ class Subscription:
             self._latest = msg
             self._latest_key = key
             self._by_key[key] = msg
-            if self.topic.kind is Kind.EVENT:
+            if self.topic.kind is Kind.EVENT and self._callback is None:  # a callback consumes events itself
                 self._queue.append(msg)
             self._fresh = True
             self.count += 1
-            self.last_receive_monotonic = time.monotonic()
             self._cond.notify_all()
         self._bus._count_received()
         if self._callback is not None:
@@ -211,7 +205,10 @@ class Subscription:
             return self._latest
 
     def drain(self) -> list[Any]:
-        """Every queued message of an event topic, oldest first (the queue is emptied)."""
+        """Every queued message of an event topic, oldest first (the queue is emptied).
+
+        Subscriptions with a callback hand every event to it and queue nothing.
+        """
         with self._cond:
             items = list(self._queue)
             self._queue.clear()
@@ -328,7 +325,6 @@ class Bus:
         name: str,
         *,
         callback: Callable[[Any], None] | None = None,
-        check: Callable[[Any], None] | None = None,
         service: str | None = None,
     ) -> Subscription:
         """Subscribe to topic ``name``.
@@ -336,11 +332,10 @@ class Bus:
         Args:
             name: topic name from the table.
             callback: optional function called (in Zenoh's thread) with each accepted message.
-            check: extra validation; raise :class:`mjnav.msgs.MessageError` to reject a message.
             service: the service of a per-service topic (``"*"`` for all).
         """
         row = topic(name)
-        sub = Subscription(self, row, row.key(self.namespace, service), callback, check)
+        sub = Subscription(self, row, row.key(self.namespace, service), callback)
         self._declared.append(sub)
         return sub
 

@@ -307,14 +307,14 @@ def _scan_kernel(
     for k in range(n):
         ak = angles[k]
         r = ranges[k] * inv_res
-        if not math.isfinite(ak) or math.isnan(r) or r < min_range or r <= 0.0:
-            continue  # invalid beam (NaN, -inf "too close", below min range): no information
+        if not math.isfinite(ak) or r < min_range or r <= 0.0:
+            continue  # -inf "too close", below min range, bad angle: no information (NaN compares false: kept)
         if ak != trig_angles[k]:
             trig_angles[k] = ak
             trig_cos[k] = math.cos(ak)
             trig_sin[k] = math.sin(ak)
         is_hit = True
-        if r >= max_range:  # includes +inf: no return within range, free up to max range
+        if r >= max_range or math.isnan(r):  # +inf or NaN: no return within range, free up to max range
             r = max_range
             is_hit = False
         ex = sx + r * (ct * trig_cos[k] - st * trig_sin[k])
@@ -712,8 +712,10 @@ class OccupancyGrid:
 
         * ``min_range_m <= r < max_range_m`` (finite): free cells from the sensor up to the end cell, end
           cell hit.
-        * ``r >= max_range_m`` or ``+inf`` (no return within range): free cells up to max range, no hit.
-        * NaN (invalid), ``−inf`` (too close to measure), ``r < min_range_m`` or ``r <= 0``: beam skipped.
+        * ``r >= max_range_m``, ``+inf`` or NaN (no return within range): free cells up to max range, no hit.
+          (REP-117 reads NaN as an invalid measurement; mjnav treats it as no return, as its spec asks, so a
+          sensor that reports nothing-in-range as NaN still clears free space.)
+        * ``−inf`` (too close to measure), ``r < min_range_m`` or ``r <= 0``: beam skipped.
         * NaN/inf beam angle: beam skipped.
 
         Beams are clipped at the map edge: each beam segment is clipped to the grid rectangle (Liang–Barsky)

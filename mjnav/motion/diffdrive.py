@@ -84,12 +84,14 @@ class DiffDriveKinematics:
         """
         if not (max_wheel_radps > 0.0):
             raise ValueError(f"max_wheel_radps must be > 0, got {max_wheel_radps}")
-        right, left = self.wheel_rates(v_mps, omega_radps)
+        # Work on (v, ω) normalised by their magnitude so that huge (finite) inputs cannot overflow to inf.
+        norm = max(abs(v_mps), abs(omega_radps), 1.0)
+        right, left = self.wheel_rates(v_mps / norm, omega_radps / norm)
         peak = max(abs(right), abs(left))
-        if peak <= max_wheel_radps:
+        if peak * norm <= max_wheel_radps:
             return v_mps, omega_radps
         k = max_wheel_radps / peak
-        return v_mps * k, omega_radps * k
+        return v_mps / norm * k, omega_radps / norm * k
 
     @staticmethod
     def turning_radius(v_mps: float, omega_radps: float) -> float:

@@ -53,7 +53,13 @@ def _odometry(msg: Any) -> None:
     _quaternion(msg.pose.pose.orientation, "Odometry")
 
 
+def _clock(msg: Any) -> None:
+    if msg.clock.sec < 0 or not 0 <= msg.clock.nanosec < 1_000_000_000:
+        raise MessageError(f"Clock time invalid: sec={msg.clock.sec}, nanosec={msg.clock.nanosec}")
+
+
 _CHECKS: dict[str, Callable[[Any], None]] = {
+    "rosgraph_msgs/msg/Clock": _clock,
     "sensor_msgs/msg/LaserScan": _laser_scan,
     "nav_msgs/msg/OccupancyGrid": _occupancy_grid,
     "geometry_msgs/msg/PoseStamped": _pose_stamped,

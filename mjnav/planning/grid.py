@@ -218,7 +218,8 @@ def plan_grid(
         weights: (α, β) ≥ 0, not both 0, for ``astar``/``jps``: f = α·g + β·h.
         corner_cutting: allow diagonal steps past occupied orthogonal cells.
         cost: optional (H, W) extra traversal cost ≥ 0 per unit length (+inf = impassable), see module doc.
-        rng: random generator for ``potential_field`` escapes.
+        rng: random generator for ``potential_field`` escapes (default: ``numpy.random.default_rng(0)``, so
+            runs repeat exactly).
         potential: parameters for ``potential_field`` (defaults when ``None``).
 
     Returns:
@@ -247,13 +248,11 @@ def plan_grid(
     if algorithm == "potential_field":
         from mjnav.planning.potential_field import plan_potential_field
 
-        if rng is None:
-            raise InvalidInput("algorithm 'potential_field' needs an rng (numpy.random.Generator)")
         return plan_potential_field(
-            grid,
+            blocked_mask,
             s,
             t,
-            rng=rng,
+            rng=np.random.default_rng(0) if rng is None else rng,
             params=potential,
             connectivity=connectivity,
             corner_cutting=corner_cutting,

@@ -32,7 +32,7 @@ _POLL_S = 0.1
 #: Tolerance on tick times, so that accumulated float error never defers a step to the next clock message.
 _TICK_EPS_S = 1e-9
 
-_STATE = {"unconfigured": 0, "inactive": 1, "active": 2, "finalized": 3, "error": 4}
+_STATE = {"unconfigured": 0, "inactive": 1, "active": 2, "finalized": 3}
 
 
 class StopRequested(Exception):
@@ -46,13 +46,15 @@ class _Stopper(Protocol):
 
 
 class _WallClock:
+    jumps_back = 0
+
     def __init__(self) -> None:
         self._t0 = time.monotonic()
 
     def now(self) -> float:
         return time.monotonic() - self._t0
 
-    def wait_until(self, t: float, stop: _Stopper) -> float:
+    def wait_until(self, t: float, stop: _Stopper, jumps: int | None = None) -> float:
         while True:
             now = self.now()
             if now >= t:
@@ -61,17 +63,24 @@ class _WallClock:
                 raise StopRequested
 
 
+class ClockJumpedBack(Exception):
+    """The sim clock went backwards (the simulator restarted); pending waits are abandoned."""
+
+
 class _SimClock:
     """Sim time from the ``clock`` topic; waits are woken by every clock message."""
 
     def __init__(self, bus: Bus) -> None:
         self._cond = threading.Condition()
         self._now = math.nan
+        self.jumps_back = 0
         self._sub = bus.subscribe("clock", callback=self._on_clock)
 
     def _on_clock(self, msg: Any) -> None:
         t = ros.seconds(msg.clock)
         with self._cond:
+            if t < self._now:
+                self.jumps_back += 1
             self._now = t
             self._cond.notify_all()
 
@@ -79,11 +88,15 @@ class _SimClock:
         with self._cond:
             return self._now
 
-    def wait_until(self, t: float, stop: _Stopper) -> float:
+    def wait_until(self, t: float, stop: _Stopper, jumps: int | None = None) -> float:
+        """Block until sim time >= ``t``; raises ClockJumpedBack once ``jumps_back`` differs from ``jumps``."""
         with self._cond:
+            jumps = self.jumps_back if jumps is None else jumps
             while not (self._now >= t):  # also loops while no clock arrived yet (NaN)
                 if stop.is_set():
                     raise StopRequested
+                if self.jumps_back != jumps:
+                    raise ClockJumpedBack
                 self._cond.wait(_POLL_S)
             return self._now
 
@@ -227,9 +240,20 @@ class ServiceRunner:
                         except StopRequested:
                             continue
                     next_tick = clock.now()
+                jumps = clock.jumps_back
                 try:
-                    now = clock.wait_until(next_tick - _TICK_EPS_S, _StopAfter(self.stop_event, STATUS_PERIOD_S))
+                    now = clock.wait_until(next_tick - _TICK_EPS_S, _StopAfter(self.stop_event, STATUS_PERIOD_S), jumps)
                 except StopRequested:
+                    continue
+                except ClockJumpedBack:
+                    now = clock.now()
+                if clock.jumps_back != jumps:
+                    # The simulator restarted: time-dependent state is void. Re-activate the service (its
+                    # activate() resets that state) and re-sync the loop on the new timeline.
+                    self.log.warning("the clock went back to %.3f s: re-activating", now)
+                    service.deactivate()
+                    service.activate()
+                    next_tick = math.nan
                     continue
                 missed = math.floor((now - next_tick) / period + _TICK_EPS_S)
                 if missed > 0:

@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from mjnav.control import PurePursuit, PurePursuitParams
+from mjnav.control import PathError, PurePursuit, PurePursuitParams, nearest_obstacle_ahead
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
 
@@ -36,6 +36,7 @@ class ControllerConfig:
         robot_radius_m: subtracted from lidar ranges to get the distance from the robot's edge.
         front_sector_rad: full width of the sector in front whose nearest return slows the robot.
         pose_timeout_s: stop when the newest pose is older than this (sim seconds).
+        path_timeout_s: stop when no path arrived for this long (sim seconds; the planner re-sends every second).
         lost_distance_m: stop when the robot is further than this from the path.
     """
 
@@ -51,10 +52,18 @@ class ControllerConfig:
     robot_radius_m: float = 0.19
     front_sector_rad: float = 1.6
     pose_timeout_s: float = 0.5
+    path_timeout_s: float = 3.0
     lost_distance_m: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("max_speed_mps", "goal_tolerance_m", "pose_timeout_s", "lost_distance_m", "front_sector_rad"):
+        for name in (
+            "max_speed_mps",
+            "goal_tolerance_m",
+            "pose_timeout_s",
+            "path_timeout_s",
+            "lost_distance_m",
+            "front_sector_rad",
+        ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
 
@@ -86,13 +95,20 @@ class ControllerService(Service[ControllerConfig]):
         self.cmd_pub = self.bus.publisher("cmd_vel")
         self.status_pub = self.bus.publisher("goal_status")
         self.status_cls = msg_class(_STATUS)
-        self.path: Any = None
-        self.goal: Any = None  # the GoalStatus that made the current goal active
         self.finished: set[int] = set()  # goal ids that ended (a late heartbeat must not revive them)
-        self.speed = 0.0
         self.stopped_reason = ""
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
+
+    def activate(self) -> None:
+        # Also called again when the sim clock restarts: the goal is re-adopted from the planner's heartbeat.
+        self.goal: Any = None  # the GoalStatus that made the current goal active
+        self.goal_since = math.inf  # its sim time: older paths belong to earlier goals
+        self.path_msg: Any = None  # newest nav_msgs/Path received
+        self.path_received = -math.inf  # sim time it arrived
+        self.path_points: Any = None
+        self.path_points_msg: Any = None
+        self.speed = 0.0
         self.pursuit.reset()
 
     def _stop(self, reason: str) -> None:
@@ -105,29 +121,53 @@ class ControllerService(Service[ControllerConfig]):
     def _track_goal(self) -> None:
         cls = self.status_cls
         for status in self.status_sub.drain():
-            if status.state == cls.STATE_FOLLOWING and status.goal_id not in self.finished:
+            if status.state in (cls.STATE_ACCEPTED, cls.STATE_PLANNING):
+                self.finished.discard(status.goal_id)  # ids start again at 1 when the planner restarts
+            elif status.state == cls.STATE_FOLLOWING and status.goal_id not in self.finished:
                 if self.goal is None or status.goal_id != self.goal.goal_id:
                     self.goal = status
+                    self.goal_since = ros.seconds(status.header.stamp)
                     self.pursuit.reset()
             elif status.state in (cls.STATE_FAILED, cls.STATE_CANCELED, cls.STATE_REACHED):
                 self.finished.add(status.goal_id)
                 if self.goal is not None and status.goal_id == self.goal.goal_id:
                     self.goal = None
 
+    def _current_path(self, now: float) -> Any:
+        """The path of the active goal: the newest one stamped since the goal started following, or None."""
+        msg = self.path_sub.take()
+        if msg is not None:
+            self.path_msg, self.path_received = msg, now
+        msg = self.path_msg
+        if self.goal is None or msg is None or ros.seconds(msg.header.stamp) < self.goal_since:
+            return None  # nothing yet, or a path of an earlier goal
+        if self.path_points is None or self.path_points_msg is not msg:
+            self.path_points, self.path_points_msg = ros.path_points(msg), msg
+        return self.path_points
+
     def step(self, now: float) -> None:
         self._track_goal()
-        new_path = self.path_sub.take()
-        if new_path is not None:
-            self.path = ros.path_points(new_path)
-        if self.goal is None or self.path is None or len(self.path) < 2:
-            self._stop("no active goal" if self.goal is None else "no path")
+        path = self._current_path(now)
+        if self.goal is None:
+            self._stop("no active goal")
+            return
+        if path is None or len(path) < 2:
+            self._stop("no path")
+            return
+        if now - self.path_received > self.config.path_timeout_s:
+            self._stop(f"path older than {self.config.path_timeout_s} s: is the smoother running?")
             return
         pose_msg = self.pose_sub.latest()
         if pose_msg is None or now - ros.seconds(pose_msg.header.stamp) > self.config.pose_timeout_s:
             self._stop("no recent pose")
             return
         pose = ros.pose2d(pose_msg.pose.pose if self.config.pose_source == "odom" else pose_msg.pose)
-        v, w = self.pursuit.compute(pose, self.speed, self.path, self._obstacle_distance())
+        try:
+            v, w = self.pursuit.compute(pose, self.speed, path, self._obstacle_distance())
+        except PathError as exc:
+            self.path_msg = None
+            self._stop(f"unusable path: {exc}")
+            return
         status = self.pursuit.status
         if self.pursuit.goal_reached:
             self._stop("goal reached")
@@ -141,17 +181,17 @@ class ControllerService(Service[ControllerConfig]):
         self.cmd_pub.put(ros.twist(v, w))
 
     def _obstacle_distance(self) -> float:
-        """Distance from the robot's edge to the nearest lidar return in the front sector, metres (inf: none)."""
         scan = self.scan_sub.latest()
         if scan is None:
             return math.inf
-        r = np.asarray(scan.ranges, dtype=np.float64)
-        angles = scan.angle_min + scan.angle_increment * np.arange(len(r))
-        half = 0.5 * self.config.front_sector_rad
-        ahead = (np.abs(np.arctan2(np.sin(angles), np.cos(angles))) <= half) & np.isfinite(r) & (r >= scan.range_min)
-        if not ahead.any():
-            return math.inf
-        return max(0.0, float(r[ahead].min()) - self.config.robot_radius_m)
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(scan.ranges))
+        return nearest_obstacle_ahead(
+            angles,
+            scan.ranges,
+            sector_rad=self.config.front_sector_rad,
+            range_min_m=float(scan.range_min),
+            robot_radius_m=self.config.robot_radius_m,
+        )
 
     def _report_reached(self, now: float) -> None:
         goal = self.goal

@@ -9,6 +9,7 @@ inflation, 0–100, −1 unknown) go out at ``publish_rate_hz`` of sim time. The
 from __future__ import annotations
 
 import json
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -83,7 +84,8 @@ class MapperService(Service[MapperConfig]):
                 cfg.resolution_m,
                 origin_m=cfg.origin_m,
             )
-        self.poses = PoseHistory(horizon_s=2.0)
+        # Pose callbacks run in Zenoh threads: they only append here; step() moves them into the history.
+        self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
         self.scan = self.bus.subscribe("scan")
         if cfg.pose_source == "ground_truth":
             self.bus.subscribe("ground_truth", callback=self._on_ground_truth)
@@ -93,19 +95,25 @@ class MapperService(Service[MapperConfig]):
         self.costmap_pub = self.bus.publisher("costmap")
         self.bus.serve("save_map", self._on_save)
         self.laser = Pose2D(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0)
-        self.next_publish = 0.0
         self.scans = 0
         self.skipped = 0
         # Load the compiled scan integration now, on a scratch grid.
         OccupancyGrid(8, 8, 0.1).integrate_scan((0.4, 0.4, 0.0), np.zeros(1), np.ones(1), 1.0)
 
+    def activate(self) -> None:
+        self.poses = PoseHistory(horizon_s=2.0)
+        self.pending.clear()
+        self.next_publish = 0.0
+
     def _on_ground_truth(self, msg: Any) -> None:
-        self.poses.add(ros.seconds(msg.header.stamp), ros.pose2d(msg.pose))
+        self.pending.append((ros.seconds(msg.header.stamp), ros.pose2d(msg.pose)))
 
     def _on_odom(self, msg: Any) -> None:
-        self.poses.add(ros.seconds(msg.header.stamp), ros.pose2d(msg.pose.pose))
+        self.pending.append((ros.seconds(msg.header.stamp), ros.pose2d(msg.pose.pose)))
 
     def step(self, now: float) -> None:
+        while self.pending:
+            self.poses.add(*self.pending.popleft())
         scan = self.scan.take()
         if scan is not None:
             self._integrate(scan)

@@ -117,7 +117,6 @@ class PlannerService(Service[PlannerConfig]):
         self.rng = np.random.default_rng(self.config.seed)
         self.goal: _Goal | None = None
         self.next_id = 1
-        self.grid_stamp = -1.0
         # Load the compiled search kernels now, not when the first goal arrives.
         free = np.zeros((4, 4), dtype=bool)
         plan_grid(
@@ -131,6 +130,13 @@ class PlannerService(Service[PlannerConfig]):
             cost=None if self.config.algorithm == "jps" else np.zeros((4, 4)),
             rng=self.rng,
         )
+
+    def activate(self) -> None:
+        # Also called again when the sim clock restarts: keep the goal, forget everything timed.
+        self.grid_stamp = -1.0
+        if self.goal is not None:
+            self.goal.cells = None
+            self.goal.last_plan_t = self.goal.last_sent_t = -math.inf
 
     # ----------------------------------------------------------------------------------------------- status
 
@@ -166,6 +172,7 @@ class PlannerService(Service[PlannerConfig]):
             ):
                 self.log.info("goal %d reached", self.goal.goal_id)
                 self.goal = None
+                self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
         if self.cancels.drain() and self.goal is not None:
             self._end(now, "CANCELED", text="canceled by request")
         for msg in self.goals.drain():

@@ -8,7 +8,6 @@ walls. An empty plan (goal ended) gives an empty path.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -22,8 +21,10 @@ from mjnav.runtime import Service
 from mjnav.smoothing import (
     fit_spline,
     gradient_descent,
+    half_widths,
     moving_average,
     qp_smooth,
+    remove_duplicates,
     resample,
     triangular_weights,
     weighted_moving_average,
@@ -42,6 +43,7 @@ class SmootherConfig:
         margin_m: clearance kept on top of the costmap's inscribed radius.
         w_smooth, w_data: weights of the smoothing cost (qp, gradient_descent).
         window: points in the moving-average window (sma, wma), odd.
+        spline_smoothing: misfit/roughness trade-off of the C2 spline (0 interpolates the plan).
     """
 
     rate_hz: float = 10.0
@@ -52,12 +54,15 @@ class SmootherConfig:
     w_smooth: float = 1.0
     w_data: float = 0.05
     window: int = 7
+    spline_smoothing: float = 10.0
 
     def __post_init__(self) -> None:
         if not self.spacing_m > 0:
             raise ValueError(f"spacing_m must be > 0, got {self.spacing_m}")
         if not (self.max_deviation_m >= 0 and self.margin_m >= 0):
             raise ValueError("max_deviation_m and margin_m must be >= 0")
+        if not self.spline_smoothing >= 0:
+            raise ValueError(f"spline_smoothing must be >= 0, got {self.spline_smoothing}")
         if self.window < 3 or self.window % 2 == 0:
             raise ValueError(f"window must be odd and >= 3, got {self.window}")
 
@@ -102,22 +107,20 @@ class SmootherService(Service[SmootherConfig]):
     def smooth(self, plan_points: Any) -> Any:
         """Smooth (N, 2) plan points with the configured method; returns (M, 2) points."""
         cfg = self.config
-        pts = resample(plan_points, cfg.spacing_m)
+        pts = remove_duplicates(resample(plan_points, cfg.spacing_m))
         if len(pts) < 3:
             return pts
-        allowed = self.allowed_deviation(pts)
-        if cfg.method == "spline":
-            return fit_spline(pts, continuity=2).sample(cfg.spacing_m)
+        # Every method keeps each point in the same box: min(max deviation, clearance/√2) per coordinate.
+        half = half_widths(cfg.max_deviation_m, len(pts), self.allowed_deviation(pts))
         if cfg.method == "qp":
-            return qp_smooth(
-                pts, max_deviation_m=cfg.max_deviation_m, w_smooth=cfg.w_smooth, w_data=cfg.w_data, clearance=allowed
-            )
+            return qp_smooth(pts, max_deviation_m=half, w_smooth=cfg.w_smooth, w_data=cfg.w_data)
         if cfg.method == "gradient_descent":
-            out = gradient_descent(pts, cfg.w_smooth, cfg.w_data)
+            return gradient_descent(pts, cfg.w_smooth, cfg.w_data, max_deviation_m=half)
+        if cfg.method == "spline":
+            spline = fit_spline(pts, continuity=2, smoothing=cfg.spline_smoothing)
+            out = spline.evaluate(spline.knots)
         elif cfg.method == "sma":
             out = moving_average(pts, cfg.window)
         else:
             out = weighted_moving_average(pts, triangular_weights(cfg.window))
-        # Same safety box as the QP: each point stays within min(max deviation, clearance/√2) per coordinate.
-        half = np.minimum(cfg.max_deviation_m, allowed / math.sqrt(2.0))[:, None]
-        return np.clip(out, pts - half, pts + half)
+        return np.clip(out, pts - half[:, None], pts + half[:, None])

@@ -305,12 +305,11 @@ class Simulator:
         if not (math.isfinite(v_mps) and math.isfinite(omega_radps)):
             raise InvalidCommandError(f"command must be finite, got v={v_mps}, omega={omega_radps}")
         r = self._robot
-        right, left = self._kinematics.wheel_rates(v_mps, omega_radps)
-        peak = max(abs(left), abs(right))
-        scale = 1.0 if peak <= r.max_wheel_speed_radps else r.max_wheel_speed_radps / peak
-        self._ctrl[r.wheel_actuators[0]] = left * scale
-        self._ctrl[r.wheel_actuators[1]] = right * scale
-        self._cmd = (v_mps * scale, omega_radps * scale)
+        v, w = self._kinematics.limit_wheel_rates(v_mps, omega_radps, r.max_wheel_speed_radps)
+        right, left = self._kinematics.wheel_rates(v, w)
+        self._ctrl[r.wheel_actuators[0]] = left
+        self._ctrl[r.wheel_actuators[1]] = right
+        self._cmd = (v, w)
         self._cmd_k = self._k
         self._watchdog_tripped = False
         self._watchdog_k = _NEVER if self._watchdog_steps == _NEVER else self._k + self._watchdog_steps

@@ -4,6 +4,7 @@ path utilities and a speed profile.
 Paths are (N, 2) float arrays of (x, y) positions in metres; every smoother returns the same shape.
 """
 
+from mjnav.smoothing._bounds import half_widths
 from mjnav.smoothing.errors import InfeasibleProblem, PathError, SolverError
 from mjnav.smoothing.gradient_descent import gradient_descent
 from mjnav.smoothing.moving_average import moving_average, triangular_weights, weighted_moving_average
@@ -34,6 +35,7 @@ __all__ = [
     "curvature",
     "fit_spline",
     "gradient_descent",
+    "half_widths",
     "headings",
     "moving_average",
     "path_length",

@@ -177,12 +177,21 @@ def test_invalid_readings_are_skipped() -> None:
     nan, inf = float("nan"), float("inf")
     g.integrate_scan(
         (0.5, 0.5, 0.0),
-        [0.0, 0.1, 0.2, 0.3, 0.4, nan, inf],
-        [nan, -inf, -1.0, 0.0, 0.2, 3.0, 3.0],
+        [0.1, 0.2, 0.3, 0.4, nan, inf],
+        [-inf, -1.0, 0.0, 0.2, 3.0, 3.0],
         8.0,
         min_range_m=0.3,
     )
     assert np.all(g.log_odds == 0.0)
+
+
+def test_nan_and_inf_ranges_are_no_return_free_up_to_max_range() -> None:
+    for special in (float("nan"), float("inf")):
+        g = unit_grid()
+        g.integrate_scan((0.5, 5.5, 0.0), [0.0], [special], 4.0)
+        # Free along the beam to max range (cells 0..4 of row 5), and no hit anywhere.
+        assert np.all(g.log_odds[5, 0:5] == pytest.approx(L_MISS))
+        assert np.count_nonzero(g.log_odds) == 5
 
 
 def test_one_update_per_cell_per_scan_and_hit_beats_pass_through() -> None:
@@ -308,7 +317,8 @@ def reference_scan(g: OccupancyGrid, pose: tuple[float, float, float], angles, r
     free: set[tuple[int, int]] = set()
     hits: set[tuple[int, int]] = set()
     for a, r in zip(angles, ranges, strict=True):
-        if math.isnan(r) or r <= 0:
+        r = math.inf if math.isnan(r) else r  # NaN = no return, like +inf
+        if r <= 0:
             continue
         r_c = r * inv
         hit = r_c < max_range * inv

@@ -292,7 +292,6 @@ def test_typed_errors() -> None:
         (np.zeros((3, 3), bool), (0, 0), (1, 1), {"algorithm": "jps", "connectivity": 4}, "jps"),
         (np.zeros((3, 3), bool), (0, 0), (1, 1), {"algorithm": "jps", "corner_cutting": True}, "jps"),
         (np.zeros((3, 3), bool), (0, 0), (1, 1), {"algorithm": "jps", "cost": np.ones((3, 3))}, "jps"),
-        (np.zeros((3, 3), bool), (0, 0), (1, 1), {"algorithm": "potential_field"}, "rng"),
     ],
 )
 def test_bad_input_is_invalid_input(occupied, start, goal, kwargs, fragment) -> None:

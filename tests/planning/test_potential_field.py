@@ -151,5 +151,14 @@ def test_bad_endpoints_and_rng() -> None:
         plan_potential_field(occ, (-1, 0), (1, 1), rng=np.random.default_rng(0))
     with pytest.raises(InvalidInput, match="rng"):
         plan_potential_field(occ, (0, 0), (1, 1), rng=0)  # type: ignore[arg-type]
-    with pytest.raises(InvalidInput, match="rng"):
-        plan_grid(occ, (0, 0), (1, 1), algorithm="potential_field")
+
+
+def test_plan_grid_potential_field_defaults_to_a_seeded_rng_and_respects_impassable_cost() -> None:
+    a = plan_grid(CUP, CUP_START, CUP_GOAL, algorithm="potential_field")
+    b = plan_grid(CUP, CUP_START, CUP_GOAL, algorithm="potential_field")
+    np.testing.assert_array_equal(a.cells, b.cells)  # no rng given: the same seeded run each time
+    occ = np.zeros((7, 7), dtype=bool)
+    cost = np.zeros((7, 7))
+    cost[:6, 3] = np.inf  # a wall made of impassable cost, open at the bottom row
+    p = plan_grid(occ, (0, 0), (0, 6), algorithm="potential_field", cost=cost)
+    assert not np.isinf(cost[p.cells[:, 0], p.cells[:, 1]]).any()
