@@ -11,11 +11,14 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.mjnav-installed
 # Offscreen rendering for MuJoCo: EGL (Mesa, software) or OSMesa.
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libosmesa6
+# Only the tests need these: headless Chromium (browser check of the viz snapshot) and docker-compose (validates
+# docker/compose.yaml). Without them those tests skip and say why.
+TEST_PACKAGES := chromium docker-compose
 DEMO_WORLD ?= rooms
 DEMO_RTF ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: demo test setup system-deps lint bench clean
+.PHONY: demo test setup system-deps test-deps lint bench clean
 
 # The mission: the robot maps the world from scratch and drives to its goal; video, map and summary in runs/.
 demo: setup
@@ -23,13 +26,13 @@ demo: setup
 	$(BIN)/mjnav demo --world $(DEMO_WORLD) --rtf $(DEMO_RTF) --record --headless --out $$out; code=$$?; \
 	echo "make demo: video, map and summary in $$out/"; exit $$code
 
-test: lint
+test: lint test-deps
 	$(BIN)/pytest $(PYTEST_ARGS)
 
 lint: setup
-	$(BIN)/ruff check mjnav tests benchmarks
-	$(BIN)/ruff format --check mjnav tests benchmarks
-	$(BIN)/mypy mjnav
+	$(BIN)/ruff check mjnav tests benchmarks examples
+	$(BIN)/ruff format --check mjnav tests benchmarks examples
+	$(BIN)/mypy mjnav examples
 
 setup: system-deps $(STAMP)
 
@@ -57,6 +60,17 @@ system-deps:
 	else \
 	  echo "WARNING: offscreen rendering needs the Debian packages:$$missing"; \
 	  echo "         install them with: sudo apt-get install$$missing (rendering tests skip until then)"; \
+	fi
+
+test-deps:
+	@if ! command -v dpkg >/dev/null; then echo "not a Debian system: install chromium and docker-compose for the browser and compose checks"; exit 0; fi; \
+	missing=""; for p in $(TEST_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -z "$$missing" ]; then exit 0; fi; \
+	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	  echo "installing Debian packages for the tests:$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
+	else \
+	  echo "NOTE: without$$missing the browser check and compose validation skip (sudo apt-get install$$missing)"; \
 	fi
 
 bench: setup

@@ -11,7 +11,7 @@ from tests.conftest import REPO
 
 PURE = ["geometry", "motion", "mapping", "planning", "smoothing", "control", "estimation", "aerial"]
 BLOCKED = ["zenoh", "mujoco", "meshcat", "rosbags"] + [
-    f"mjnav.{m}" for m in ("msgs", "bus", "runtime", "services", "sim", "viz", "commands", "cli")
+    f"mjnav.{m}" for m in ("msgs", "bus", "runtime", "services", "sim", "viz", "bag", "commands", "cli")
 ]
 
 # Imports the package and every submodule with a finder that refuses the blocked modules.

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import sys
 import time
 from pathlib import Path
 from typing import Any
+
+from mjnav import jsonsafe
 
 ALGORITHMS = ("astar", "jps", "dijkstra", "greedy", "bfs", "dfs")
 
@@ -163,7 +164,7 @@ def run_movingai(args: argparse.Namespace) -> int:
     }
     ok = matched == len(scenarios)
     if args.json:
-        print(json.dumps(result))
+        print(jsonsafe.dumps(result))
     else:
         print(f"map:            {mai.name} ({blocked.shape[1]}×{blocked.shape[0]}), {args.scen.name}")
         print(f"algorithm:      {args.algorithm}")

@@ -9,6 +9,8 @@ import threading
 import time
 from typing import Any
 
+from mjnav import jsonsafe
+
 _TOPICS_EPILOG = "Keys are <namespace>/<topic>; see the topic table in README.md."
 
 
@@ -147,7 +149,7 @@ def run_echo(args: argparse.Namespace) -> int:
                 return
             data = to_dict(msg)
             if args.format == "json":
-                sys.stdout.write(json.dumps(data) + "\n")
+                sys.stdout.write(jsonsafe.dumps(data) + "\n")
             else:
                 sys.stdout.write("---\n" + yaml.safe_dump(data, sort_keys=False))
             sys.stdout.flush()

@@ -10,6 +10,8 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from mjnav import jsonsafe
+
 
 def register(sub: Any) -> None:
     """Add the ``demo`` command."""
@@ -79,10 +81,10 @@ def _parse_goals(args: argparse.Namespace, default: Any) -> list[tuple[float, fl
 def run(args: argparse.Namespace) -> int:
     """``mjnav demo``."""
     from mjnav.bus import Bus, BusConfig
-    from mjnav.runtime.config import ConfigError, parse_override
+    from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
-    from mjnav.runtime.stack import load_stack
+    from mjnav.runtime.stack import add_service_overrides, load_stack
     from mjnav.sim.worlds import world_info
 
     setup_logging(args.log_level)
@@ -106,11 +108,9 @@ def run(args: argparse.Namespace) -> int:
             overrides["sim"].append(f"record_path={json.dumps(str(video.resolve()))}")
         if out is not None and "mapper" in stack.names():
             overrides.setdefault("mapper", []).append(f"save_path={json.dumps(str((out / 'map.yaml').resolve()))}")
-        for item in args.set:
-            target, _, rest = item.partition(".")
-            stack.get(target)
-            parse_override(rest)
-            overrides.setdefault(target, []).append(rest)
+        if out is not None and "viz" in stack.names():
+            overrides.setdefault("viz", []).append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
+        add_service_overrides(stack, args.set, overrides)
     except (ConfigError, ValueError, OSError, KeyError) as exc:
         print(f"mjnav demo: {exc}", file=sys.stderr)
         return 2
@@ -140,10 +140,10 @@ def run(args: argparse.Namespace) -> int:
         return 1
     data = summary.to_dict()
     if out is not None:
-        (out / "summary.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+        (out / "summary.json").write_text(jsonsafe.dumps(data, indent=2) + "\n", encoding="utf-8")
     _print_summary(data, out)
     if args.json:
-        print(json.dumps(data))
+        print(jsonsafe.dumps(data))
     return 0 if summary.reached else 1
 
 
@@ -216,8 +216,6 @@ def _print_summary(data: dict[str, Any], out: Path | None) -> None:
         f"v_max: {data['v_max_mps']} m/s   min clearance: {data['min_clearance_m']} m",
     ]
     if out is not None:
-        lines.append(
-            f"files in {out}: summary.json, map.yaml + map.pgm"
-            + (", video.mp4" if (out / "video.mp4").exists() else "")
-        )
+        extra = "".join(f", {name}" for name in ("video.mp4", "scene.html") if (out / name).exists())
+        lines.append(f"files in {out}: summary.json, map.yaml + map.pgm{extra}")
     print("\n".join(lines), file=sys.stderr)

@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from mjnav import jsonsafe
 
 if TYPE_CHECKING:
     import numpy as np
@@ -186,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         "path": points,
     }
     if args.json:
-        print(json.dumps(result))
+        print(jsonsafe.dumps(result))
         return 0
     print(f"map:        {path} ({frame.kind}, {occupied.shape[1]}×{occupied.shape[0]} cells)")
     print(

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from pathlib import Path
 from typing import Any
 
 
@@ -50,6 +52,16 @@ def register(sub: Any) -> None:
     up.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"router port (default {DEFAULT_PORT})")
     up.add_argument("--duration", type=float, metavar="S", help="stop after S wall seconds (default: run until Ctrl-C)")
     up.add_argument("--headless", action="store_true", help="open no browser or window (always true without a display)")
+    up.add_argument(
+        "--world",
+        metavar="W",
+        help="the sim's world: empty, rooms, maze, warehouse or an MJCF path (= --set sim.world=W)",
+    )
+    up.add_argument(
+        "--static-html",
+        metavar="FILE",
+        help="write a self-contained HTML snapshot of the viz scene when the stack stops",
+    )
     up.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
     up.add_argument(
         "--set",
@@ -89,10 +101,10 @@ def run_service(args: argparse.Namespace) -> int:
 
 def run_up(args: argparse.Namespace) -> int:
     """``mjnav up``."""
-    from mjnav.runtime.config import ConfigError, parse_override
+    from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
-    from mjnav.runtime.stack import load_stack
+    from mjnav.runtime.stack import add_service_overrides, load_stack
 
     setup_logging(args.log_level)
     try:
@@ -103,13 +115,13 @@ def run_up(args: argparse.Namespace) -> int:
             return 0
         only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None
         overrides: dict[str, list[str]] = {}
-        for item in args.set:
-            target, _, rest = item.partition(".")
-            if not rest or "=" not in rest:
-                raise ConfigError(f"--set {item!r} must look like SERVICE.KEY=VALUE")
-            stack.get(target)
-            parse_override(rest)
-            overrides.setdefault(target, []).append(rest)
+        if args.world:
+            stack.get("sim")
+            overrides.setdefault("sim", []).append(f"world={json.dumps(args.world)}")
+        if args.static_html:
+            stack.get("viz")
+            overrides.setdefault("viz", []).append(f"static_html={json.dumps(str(Path(args.static_html).resolve()))}")
+        add_service_overrides(stack, args.set, overrides)
         launcher = Launcher(
             stack,
             only=only,

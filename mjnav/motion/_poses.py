@@ -23,11 +23,6 @@ def as_poses(pose: PoseLike, name: str = "pose") -> FloatArray:
     return arr
 
 
-def wrap(a: FloatArray) -> FloatArray:
-    """Wrap angles to [-π, π)."""
-    return np.asarray(np.mod(a + np.pi, 2.0 * np.pi) - np.pi)
-
-
 def check_alphas(alphas: ArrayLike, count: int) -> FloatArray:
     """Validate ``count`` non-negative finite noise parameters."""
     a = np.asarray(alphas, dtype=np.float64).reshape(-1)

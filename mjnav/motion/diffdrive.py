@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mjnav.motion._poses import FloatArray, PoseLike, as_poses, wrap
+from mjnav.geometry import wrap_angles
+from mjnav.motion._poses import FloatArray, PoseLike, as_poses
 
 
 @dataclass(frozen=True, slots=True)
@@ -132,5 +133,5 @@ class DiffDriveKinematics:
         chord = ds * float(np.sinc(dth / (2.0 * math.pi)))
         mid = p[..., 2] + 0.5 * dth
         return np.stack(
-            (p[..., 0] + chord * np.cos(mid), p[..., 1] + chord * np.sin(mid), wrap(p[..., 2] + dth)), axis=-1
+            (p[..., 0] + chord * np.cos(mid), p[..., 1] + chord * np.sin(mid), wrap_angles(p[..., 2] + dth)), axis=-1
         )

@@ -22,7 +22,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mjnav.motion._poses import FloatArray, PoseLike, as_poses, check_alphas, wrap
+from mjnav.geometry import wrap_angles
+from mjnav.motion._poses import FloatArray, PoseLike, as_poses, check_alphas
 
 _STILL = 1e-9  # translations shorter than this (m) count as pure rotation
 
@@ -44,8 +45,8 @@ def odometry_delta(odom_prev: PoseLike, odom_curr: PoseLike) -> FloatArray:
     dx = b[..., 0] - a[..., 0]
     dy = b[..., 1] - a[..., 1]
     trans = np.hypot(dx, dy)
-    rot1 = np.where(trans < _STILL, 0.0, wrap(np.arctan2(dy, dx) - a[..., 2]))
-    rot2 = wrap(b[..., 2] - a[..., 2] - rot1)
+    rot1 = np.where(trans < _STILL, 0.0, wrap_angles(np.arctan2(dy, dx) - a[..., 2]))
+    rot2 = wrap_angles(b[..., 2] - a[..., 2] - rot1)
     return np.stack((rot1, trans, rot2), axis=-1)
 
 
@@ -64,7 +65,7 @@ def apply_odometry_delta(pose: PoseLike, delta: ArrayLike) -> FloatArray:
     heading = p[..., 2] + d[..., 0]
     x = p[..., 0] + d[..., 1] * np.cos(heading)
     y = p[..., 1] + d[..., 1] * np.sin(heading)
-    return np.stack(np.broadcast_arrays(x, y, wrap(heading + d[..., 2])), axis=-1)
+    return np.stack(np.broadcast_arrays(x, y, wrap_angles(heading + d[..., 2])), axis=-1)
 
 
 def sample_odometry_motion(
@@ -140,7 +141,7 @@ def odometry_likelihood(
     cur, prev = np.broadcast_arrays(cur, prev)
     h = odometry_delta(prev, cur)
     h1, ht, h2 = h[..., 0], h[..., 1], h[..., 2]
-    p1 = _gauss(wrap(np.asarray(rot1 - h1)), np.maximum(a[0] * h1**2 + a[1] * ht**2, min_variance))
+    p1 = _gauss(wrap_angles(np.asarray(rot1 - h1)), np.maximum(a[0] * h1**2 + a[1] * ht**2, min_variance))
     pt = _gauss(np.asarray(trans - ht), np.maximum(a[2] * ht**2 + a[3] * (h1**2 + h2**2), min_variance))
-    p2 = _gauss(wrap(np.asarray(rot2 - h2)), np.maximum(a[0] * h2**2 + a[1] * ht**2, min_variance))
+    p2 = _gauss(wrap_angles(np.asarray(rot2 - h2)), np.maximum(a[0] * h2**2 + a[1] * ht**2, min_variance))
     return np.asarray(p1 * pt * p2)

@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from mjnav.motion._poses import FloatArray, PoseLike, as_poses, wrap
+from mjnav.geometry import wrap_angles
+from mjnav.motion._poses import FloatArray, PoseLike, as_poses
 
 
 def simple_motion(pose: PoseLike, distance_m: float, rotation_rad: float) -> FloatArray:
@@ -32,7 +33,7 @@ def simple_motion(pose: PoseLike, distance_m: float, rotation_rad: float) -> Flo
         (
             p[..., 0] + distance_m * np.cos(p[..., 2]),
             p[..., 1] + distance_m * np.sin(p[..., 2]),
-            wrap(p[..., 2] + rotation_rad),
+            wrap_angles(p[..., 2] + rotation_rad),
         ),
         axis=-1,
     )
@@ -68,5 +69,5 @@ def sample_simple_motion(
     d = distance_m + rng.normal(0.0, distance_std_m, shape)
     r = rotation_rad + rng.normal(0.0, rotation_std_rad, shape)
     return np.stack(
-        (p[..., 0] + d * np.cos(p[..., 2]), p[..., 1] + d * np.sin(p[..., 2]), wrap(p[..., 2] + r)), axis=-1
+        (p[..., 0] + d * np.cos(p[..., 2]), p[..., 1] + d * np.sin(p[..., 2]), wrap_angles(p[..., 2] + r)), axis=-1
     )

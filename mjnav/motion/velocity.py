@@ -23,7 +23,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mjnav.motion._poses import FloatArray, PoseLike, as_poses, check_alphas, wrap
+from mjnav.geometry import wrap_angles
+from mjnav.motion._poses import FloatArray, PoseLike, as_poses, check_alphas
 
 
 def _arc(
@@ -54,7 +55,7 @@ def velocity_motion(pose: PoseLike, v_mps: float, omega_radps: float, dt_s: floa
         raise ValueError(f"need finite v, omega and dt >= 0, got ({v_mps}, {omega_radps}, {dt_s})")
     p = as_poses(pose)
     x, y, th = _arc(p[..., 0], p[..., 1], p[..., 2], np.asarray(v_mps), np.asarray(omega_radps), dt_s)
-    return np.stack((x, y, wrap(th)), axis=-1)
+    return np.stack((x, y, wrap_angles(th)), axis=-1)
 
 
 def sample_velocity_motion(
@@ -88,4 +89,4 @@ def sample_velocity_motion(
     w_hat = omega_radps + rng.normal(0.0, math.sqrt(a[2] * v2 + a[3] * w2), shape)
     g_hat = rng.normal(0.0, math.sqrt(a[4] * v2 + a[5] * w2), shape)
     x, y, th = _arc(p[..., 0], p[..., 1], p[..., 2], v_hat, w_hat, dt_s)
-    return np.stack((x, y, wrap(th + g_hat * dt_s)), axis=-1)
+    return np.stack((x, y, wrap_angles(th + g_hat * dt_s)), axis=-1)

@@ -141,8 +141,8 @@ TOPICS: dict[str, Topic] = {
             "20 Hz",
             "Velocity command (linear.x m/s, angular.z rad/s)",
         ),
-        Topic("map", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "1 Hz", "Log-odds occupancy map, frame `map`"),
-        Topic("costmap", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "1 Hz", "Inflated costmap, 0–100"),
+        Topic("map", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "2 Hz", "Log-odds occupancy map, frame `map`"),
+        Topic("costmap", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "2 Hz", "Inflated costmap, 0–100"),
         Topic("goal", "geometry_msgs/msg/PoseStamped", _E, "user", "on request", "Navigation goal in `map`"),
         Topic("cancel", "std_msgs/msg/Empty", _E, "user", "on request", "Cancel the current goal"),
         Topic("plan", "nav_msgs/msg/Path", _S, "planner", "on change", "Raw grid plan in `map`"),
@@ -183,7 +183,7 @@ ENDPOINTS: dict[str, Endpoint] = {
             "std_msgs/msg/String",
             "std_msgs/msg/String",
             "mapper",
-            "Save the map as PGM + YAML; request: .yaml path (empty = configured); reply: the path written",
+            'Save the map as PGM + YAML; request: .yaml path (empty = configured); reply: JSON {"yaml": path}',
         ),
     )
 }

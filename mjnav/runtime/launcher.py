@@ -52,7 +52,7 @@ class Launcher:
         port: router port on 127.0.0.1.
         duration_s: stop after this many wall seconds (None = until a signal).
         overrides: per-service ``--set`` values, ``{"sim": ["world=maze"]}``.
-        extra_args: per-service extra command-line arguments for ``mjnav run``.
+        extra_env: environment variables added for every service.
         out: where prefixed child output goes (default stdout).
     """
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
+from mjnav.jsonsafe import json_safe
 from mjnav.msgs import msg_class, ros
 
 _STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
@@ -176,11 +177,9 @@ class MissionSummary:
     goals: list[dict[str, Any]]
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict (non-finite floats become None)."""
+        """JSON-friendly dict: top-level figures rounded to 0.1 mm / 0.1 ms, non-finite floats as None."""
         d = asdict(self)
         for k, v in d.items():
-            if isinstance(v, float) and not math.isfinite(v):
-                d[k] = None
-            elif isinstance(v, float):
+            if isinstance(v, float) and math.isfinite(v):
                 d[k] = round(v, 4)
-        return d
+        return json_safe(d)

@@ -21,7 +21,7 @@ from typing import Any
 
 import mjnav
 from mjnav.msgs.topics import DEFAULT_NAMESPACE, check_namespace
-from mjnav.runtime.config import ConfigError, build_config, read_toml
+from mjnav.runtime.config import ConfigError, build_config, parse_override, read_toml
 from mjnav.runtime.service import Service
 
 
@@ -142,3 +142,19 @@ def load_stack(path: str | Path | None = None) -> Stack:
     if not specs:
         raise ConfigError(f"{p}: defines no [[service]]")
     return Stack(p, namespace, tuple(specs))
+
+
+def add_service_overrides(stack: Stack, items: list[str], overrides: dict[str, list[str]]) -> None:
+    """Check ``SERVICE.KEY=VALUE`` items (``--set`` of ``mjnav up`` and ``mjnav demo``) and append them to
+    ``overrides[SERVICE]`` as ``KEY=VALUE``.
+
+    Raises:
+        ConfigError: malformed item or unknown service.
+    """
+    for item in items:
+        target, _, rest = item.partition(".")
+        if not rest or "=" not in rest:
+            raise ConfigError(f"--set {item!r} must look like SERVICE.KEY=VALUE")
+        stack.get(target)
+        parse_override(rest)
+        overrides.setdefault(target, []).append(rest)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mjnav.geometry import Pose2D, wrap_angle
+from mjnav.geometry import Pose2D
 from mjnav.motion import DiffDriveKinematics
 
 
@@ -128,12 +128,9 @@ class WheelOdometry:
             dr *= 1.0 + float(noise[1])
         dl *= self.radius_scale[0]
         dr *= self.radius_scale[1]
-        # Wheel-angle increments (rad) map to (distance m, heading change rad) by the same formulas as rates.
-        ds, dtheta = self._kinematics.body_twist(dr, dl)
-        mid = self._theta + 0.5 * dtheta
-        self._x += ds * math.cos(mid)
-        self._y += ds * math.sin(mid)
-        self._theta = wrap_angle(self._theta + dtheta)
+        ds, dtheta = self._kinematics.wheel_increments_to_motion(dr, dl)
+        x, y, theta = self._kinematics.integrate_encoders((self._x, self._y, self._theta), dr, dl)
+        self._x, self._y, self._theta = float(x), float(y), float(theta)
         dt = stamp_s - self._stamp
         self._stamp = stamp_s
         v, w = (ds / dt, dtheta / dt) if dt > 0.0 else (0.0, 0.0)

@@ -1,0 +1,240 @@
+"""The viz service: a headless meshcat viewer of the stack, kept current from the bus.
+
+Starts meshcat's web + ZMQ server in-process (bound to ``host``, loopback by default; never opens a browser unless
+``open_browser`` is set *and* a display exists *and* the stack is not ``--headless``), builds the scene from the
+MJCF world the sim runs (named in ``<ns>/sim_status`` — so a replayed bag shows its world too — or asked on
+``<ns>/config/sim``, unless ``world`` is set) and, at ``rate_hz`` on wall time, draws the newest robot pose
+(``ground_truth`` or ``odom``), scan, map, costmap, plan, path, and every goal and goal status. A message that
+cannot be drawn is logged with its topic and skipped. With ``static_html`` set, the scene is written there as a
+self-contained HTML snapshot when the service stops (and every ``static_html_period_s``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+import webbrowser
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mjnav.bus import NoReply, RemoteError
+from mjnav.msgs import endpoint
+from mjnav.runtime import Service
+
+#: Per-topic draw failures logged in full before they are only counted.
+_LOG_FIRST = 5
+
+
+@dataclass(frozen=True)
+class VizConfig:
+    """Viz service settings (``services/viz.toml``).
+
+    Attributes:
+        rate_hz: drawing rate (wall time).
+        world: bundled world name or MJCF path to draw; "" = the sim's world (``<ns>/sim_status``, ``<ns>/config/sim``).
+        world_timeout_s: how long to keep asking the sim before drawing without a world (robot model only).
+        serve: run the meshcat server (False: build the scene only, e.g. for ``static_html``).
+        host: interface the meshcat web and ZMQ sockets bind to; ``0.0.0.0`` serves the network.
+        web_port: viewer port (HTTP + WebSocket); 0 picks a free one.
+        zmq_port: meshcat drawing-command port (ZMQ); 0 picks a free one.
+        port_search: when a port is taken, try this many following ports before failing.
+        open_browser: open the viewer in a browser when a display exists and the stack is not headless.
+        static_html: write a self-contained HTML snapshot here when stopping ("" = none).
+        static_html_period_s: also rewrite the snapshot this often, wall seconds (0 = only when stopping).
+        pose_topic: ``ground_truth`` (true pose, map frame) or ``odom`` (wheel odometry, drifts).
+        scan_point_size_m: drawn size of one scan return, metres.
+        draw_costmap: draw the ``costmap`` topic over the map.
+    """
+
+    rate_hz: float = 10.0
+    world: str = ""
+    world_timeout_s: float = 10.0
+    serve: bool = True
+    host: str = "127.0.0.1"
+    web_port: int = 7000
+    zmq_port: int = 6000
+    port_search: int = 10
+    open_browser: bool = True
+    static_html: str = ""
+    static_html_period_s: float = 0.0
+    pose_topic: str = "ground_truth"
+    scan_point_size_m: float = 0.06
+    draw_costmap: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.rate_hz > 0.0:
+            raise ValueError(f"rate_hz must be > 0, got {self.rate_hz}")
+        for name in ("web_port", "zmq_port"):
+            if not 0 <= getattr(self, name) <= 65535:
+                raise ValueError(f"{name} must be 0..65535, got {getattr(self, name)}")
+        if self.port_search < 0:
+            raise ValueError(f"port_search must be >= 0, got {self.port_search}")
+        for name in ("world_timeout_s", "static_html_period_s"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.pose_topic not in ("ground_truth", "odom"):
+            raise ValueError(f"pose_topic must be 'ground_truth' or 'odom', got {self.pose_topic!r}")
+        if not self.scan_point_size_m > 0.0:
+            raise ValueError(f"scan_point_size_m must be > 0, got {self.scan_point_size_m}")
+        if not self.host:
+            raise ValueError("host must not be empty (127.0.0.1 = this machine only, 0.0.0.0 = every interface)")
+
+
+class VizService(Service[VizConfig]):
+    """meshcat viewer of the stack."""
+
+    name = "viz"
+    config_class = VizConfig
+    uses_sim_time = False
+
+    def configure(self) -> None:
+        from mjnav.viz import MeshcatClient, MeshcatServer, NavView, Scene
+
+        cfg = self.config
+        self.server: Any = None
+        self.client: Any = None
+        if cfg.serve:
+            self.server = MeshcatServer(cfg.host, cfg.web_port, cfg.zmq_port, cfg.port_search).start()
+            self.client = MeshcatClient(self.server.zmq_url)
+            self.log.info("meshcat viewer at %s (drawing commands on %s)", self.server.web_url, self.server.zmq_url)
+        self.scene = Scene(self.client.send if self.client is not None else None)
+        self.view = NavView(self.scene, scan_point_size_m=cfg.scan_point_size_m, pose_topic=cfg.pose_topic)
+        snapshots = [cfg.pose_topic, "scan", "map", "plan", "path"] + (["costmap"] if cfg.draw_costmap else [])
+        self.snapshot_subs = {name: self.bus.subscribe(name) for name in snapshots}
+        self.event_subs = {name: self.bus.subscribe(name) for name in ("goal", "goal_status")}
+        self.sim_status = self.bus.subscribe("sim_status")
+        self.world_name = ""
+        self._failures: dict[str, int] = {}
+
+    def activate(self) -> None:
+        cfg = self.config
+        self._started = time.monotonic()
+        self._next_snapshot = self._started + cfg.static_html_period_s if cfg.static_html_period_s else None
+        self.view.setup_viewer()
+        if cfg.world:
+            self._load_world(cfg.world)
+        else:
+            self.log.info(
+                "waiting for the sim's world (%s or %s)",
+                self.bus.key("sim_status"),
+                endpoint("config").key(self.bus.namespace, "sim"),
+            )
+        if cfg.open_browser and self.server is not None and _can_open_browser():
+            webbrowser.open(self.server.web_url, new=2)
+
+    # --------------------------------------------------------------------------------------------------- loop
+
+    def step(self, now: float) -> None:
+        if self.view.model is None and not self._resolve_world():
+            return
+        for name, sub in self.snapshot_subs.items():
+            msg = sub.take()
+            if msg is not None:
+                self._draw(name, msg)
+        for name, sub in self.event_subs.items():
+            for msg in sub.drain():
+                self._draw(name, msg)
+        if self._next_snapshot is not None and time.monotonic() >= self._next_snapshot:
+            self._next_snapshot += self.config.static_html_period_s
+            self._write_snapshot()
+
+    def _draw(self, name: str, msg: Any) -> None:
+        try:
+            self.view.handle(name, msg)
+        except Exception as exc:  # one bad message must not stop the drawing of the others
+            n = self._failures.get(name, 0) + 1
+            self._failures[name] = n
+            if n <= _LOG_FIRST:
+                self.log.warning("cannot draw %s from %s: %s: %s", name, self.bus.key(name), type(exc).__name__, exc)
+
+    # --------------------------------------------------------------------------------------------------- world
+
+    def _resolve_world(self) -> bool:
+        """Find the sim's world: its ``sim_status`` (also in bags), else its config; after ``world_timeout_s`` settle
+        for the robot alone."""
+        world = self._world_from_sim_status() or self._world_from_sim_config()
+        if world:
+            self._load_world(world)
+            return True
+        if time.monotonic() - self._started < self.config.world_timeout_s:
+            return False
+        self.log.warning(
+            "no world from the sim within %.1f s (%s, %s); drawing the robot without a world",
+            self.config.world_timeout_s,
+            self.bus.key("sim_status"),
+            endpoint("config").key(self.bus.namespace, "sim"),
+        )
+        self._load_world("")
+        return True
+
+    def _world_from_sim_status(self) -> str | None:
+        from mjnav.sim import UnknownWorldError, resolve_world
+
+        msg = self.sim_status.latest()
+        if msg is None or not msg.world:
+            return None
+        try:
+            resolve_world(msg.world)
+        except UnknownWorldError:
+            return None  # a scene file elsewhere: only its name is in sim_status; the config has the path
+        return str(msg.world)
+
+    def _world_from_sim_config(self) -> str | None:
+        try:
+            reply = self.bus.call("config", service="sim", timeout_s=0.5)
+            world = json.loads(reply.data).get("world")
+        except (NoReply, RemoteError, ValueError):
+            return None
+        return world if isinstance(world, str) and world else None
+
+    def _load_world(self, world: str) -> None:
+        from mjnav.sim import SimError
+        from mjnav.sim.worlds import MJCF_DIR
+        from mjnav.viz import load_visual_model
+
+        try:
+            model = load_visual_model(world if world else MJCF_DIR / "diffbot.xml")
+        except (SimError, OSError) as exc:
+            self.log.error("cannot load world %r: %s; drawing the robot without a world", world, exc)
+            model = load_visual_model(MJCF_DIR / "diffbot.xml")
+            world = ""
+        self.world_name = world
+        if world:
+            self.view.frame_camera(model.view_bounds())
+        self.view.draw_model(model)
+        self.log.info(
+            "drawing world %s: %d static geoms, %d moving, robot of %d geoms",
+            world or "(none)",
+            len(model.world_geoms) if world else 0,
+            len(model.moving_geoms),
+            len(model.robot_geoms),
+        )
+
+    # --------------------------------------------------------------------------------------------------- stop
+
+    def _write_snapshot(self) -> None:
+        path = Path(self.config.static_html)
+        try:
+            self.scene.write_static_html(path, title=f"mjnav {self.bus.namespace} {self.world_name}".strip())
+        except OSError as exc:
+            self.log.error("cannot write the snapshot %s: %s", path, exc)
+            return
+        self.log.info("wrote the scene snapshot %s", path)
+
+    def deactivate(self) -> None:
+        if self.config.static_html:
+            self._write_snapshot()
+        if self.client is not None:
+            self.client.close()
+        if self.server is not None:
+            self.server.stop()
+        self.log.info("drew %s", ", ".join(f"{k} {v}" for k, v in sorted(self.view.drawn.items())) or "nothing")
+
+
+def _can_open_browser() -> bool:
+    """A browser may open: the stack is not headless and there is a display."""
+    if os.environ.get("MJNAV_HEADLESS", "") not in ("", "0"):
+        return False
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
