@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from mjnav.bus import Bus, BusConfig, cdr_encoding
-from mjnav.msgs import encode, from_dict, ros
+from mjnav.bus.bus import publisher_qos
+from mjnav.msgs import Kind, encode, from_dict, ros
 
 BEAMS = 360
 
@@ -63,13 +64,11 @@ def publisher(endpoint: str, variant: str, count: int, rate_hz: float) -> None:
             pub.wait_for_subscribers(10.0)
             put = None
         else:
-            import zenoh
-
+            # Plain Zenoh with the same options as mjnav's snapshot publisher: only the codec and bus differ.
             raw = bus.session.declare_publisher(
                 bus.key("scan"),
                 encoding=cdr_encoding("sensor_msgs/msg/LaserScan"),
-                congestion_control=zenoh.CongestionControl.DROP,
-                express=True,
+                **publisher_qos(Kind.SNAPSHOT),
             )
             payload = bytearray(encode(template))
             put = raw.put
