@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import threading
 import time
@@ -148,11 +149,15 @@ def run_echo(args: argparse.Namespace) -> int:
             if done.is_set():
                 return
             data = to_dict(msg)
-            if args.format == "json":
-                sys.stdout.write(jsonsafe.dumps(data) + "\n")
-            else:
-                sys.stdout.write("---\n" + yaml.safe_dump(data, sort_keys=False))
-            sys.stdout.flush()
+            try:
+                if args.format == "json":
+                    sys.stdout.write(jsonsafe.dumps(data) + "\n")
+                else:
+                    sys.stdout.write("---\n" + yaml.safe_dump(data, sort_keys=False))
+                sys.stdout.flush()
+            except BrokenPipeError:  # the reader went away (e.g. `| head -1`): stop quietly
+                done.set()
+                return
             printed += 1
             if args.count is not None and printed >= args.count:
                 done.set()
@@ -170,6 +175,11 @@ def run_echo(args: argparse.Namespace) -> int:
                     return 1
         except KeyboardInterrupt:
             pass
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # Python would report the closed pipe again at exit: point stdout at /dev/null first.
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115
     return 0
 
 

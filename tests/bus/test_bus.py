@@ -122,10 +122,14 @@ def test_liveliness_appears_and_disappears(peer: Peer, router_endpoint: str) -> 
 
 
 def test_namespaces_do_not_mix(peer: Peer) -> None:
-    a, b, c = peer("robot1"), peer("robot1"), peer("robot2")
-    sub1, sub2 = b.subscribe("cmd_vel"), c.subscribe("cmd_vel")
-    pub = a.publisher("cmd_vel")
-    assert pub.wait_for_subscribers(5.0)
-    pub.put(ros.twist(1.0, 0.0))
-    assert sub1.wait(5.0) is not None
-    assert sub2.latest() is None
+    a, b, c, d = peer("robot1"), peer("robot1"), peer("robot2"), peer("robot2")
+    sub1, sub2 = b.subscribe("goal"), c.subscribe("goal")
+    pub1, pub2 = a.publisher("goal"), d.publisher("goal")
+    assert pub1.wait_for_subscribers(5.0) and pub2.wait_for_subscribers(5.0)
+    pub1.put(ros.pose_stamped(0.0, "map", Pose2D(1.0, 0.0, 0.0)))
+    pub2.put(ros.pose_stamped(0.0, "map", Pose2D(2.0, 0.0, 0.0)))  # a marker sent after robot1's goal
+    arrived = lambda m: m is not None  # noqa: E731 - also true for a message that came before the call
+    assert sub1.wait(5.0, arrived) is not None and sub2.wait(5.0, arrived) is not None
+    # Events are reliable and ordered per publisher: had robot1's goal leaked into robot2, it would be queued too.
+    assert [m.pose.position.x for m in sub2.drain()] == [2.0]
+    assert [m.pose.position.x for m in sub1.drain()] == [1.0]

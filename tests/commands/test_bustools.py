@@ -71,3 +71,27 @@ def test_topics_lists_live_keys_with_type_and_rate(peer: Callable[..., Bus], rou
     assert row["type"] == "geometry_msgs/msg/Twist" and row["delivery"] == "snapshot"
     assert row["rate_hz"] > 5.0 and row["messages"] > 5
     assert report["services_alive"] == ["tester"]
+
+
+def test_echo_stops_quietly_when_its_reader_goes_away(peer: Callable[..., Bus], router_endpoint: str) -> None:
+    proc = _mjnav("echo", "robot0/cmd_vel", "--connect", router_endpoint)
+    me = peer()
+    pub = me.publisher("cmd_vel")
+    assert pub.wait_for_subscribers(30.0)
+    stop = threading.Event()
+
+    def publish() -> None:
+        while not stop.wait(0.02):
+            pub.put(ros.twist(0.1, 0.0))
+
+    thread = threading.Thread(target=publish)
+    thread.start()
+    try:
+        assert proc.stdout is not None
+        assert json.loads(proc.stdout.readline())["linear"]["x"] == 0.1
+        proc.stdout.close()  # like `mjnav echo … | head -1`
+        assert proc.wait(30) == 0
+    finally:
+        stop.set()
+        thread.join()
+    assert "BrokenPipe" not in proc.stderr.read()  # type: ignore[union-attr]

@@ -12,6 +12,7 @@ from mjnav.runtime import Service
 from mjnav.runtime.runner import ServiceRunner
 
 STEPS: list[float] = []
+ACTIVATIONS: list[int] = []
 STEPPED = threading.Condition()
 
 
@@ -23,6 +24,9 @@ class CountingConfig:
 class Counting(Service[CountingConfig]):
     name = "counting"
     config_class = CountingConfig
+
+    def activate(self) -> None:
+        ACTIVATIONS.append(len(STEPS))
 
     def step(self, now: float) -> None:
         with STEPPED:
@@ -37,6 +41,7 @@ def _wait_steps(n: int) -> bool:
 
 def test_steps_follow_sim_time_and_count_overruns(peer: Callable[..., Bus], router_endpoint: str) -> None:
     STEPS.clear()
+    ACTIVATIONS.clear()
     runner = ServiceRunner(Counting, CountingConfig(), BusConfig(connect=(router_endpoint,)), "robot0")
     thread = threading.Thread(target=runner.run)
     thread.start()
@@ -57,6 +62,12 @@ def test_steps_follow_sim_time_and_count_overruns(peer: Callable[..., Bus], rout
         assert STEPS[-1] == 1.55 and runner.stats.overruns == 4
         clock.put(ros.clock(1.65))
         assert _wait_steps(13) and STEPS[-1] == 1.65
+        # The sim restarts: the clock goes back to 0. The service is re-activated and steps on the new timeline.
+        clock.put(ros.clock(0.0))
+        assert _wait_steps(14), "the loop froze after the clock went back"
+        assert STEPS[-1] == 0.0 and ACTIVATIONS == [0, 13]
+        clock.put(ros.clock(0.1))
+        assert _wait_steps(15) and STEPS[-1] == 0.1
     finally:
         runner.stop_event.set()
         thread.join(10.0)

@@ -83,12 +83,16 @@ def _true_map(world: str, path: Path) -> Path:
     return write_ros_map(path, np.where(occupied, 100, 0).astype(np.int8), 0.05, (-10.0, -10.0, 0.0))
 
 
-def test_demo_reaches_the_rooms_goal_from_an_unknown_map(tmp_path: Path) -> None:
+def test_demo_reaches_two_goals_in_the_rooms_world_from_an_unknown_map(tmp_path: Path) -> None:
     out = tmp_path / "run"
+    goals = tmp_path / "goals.json"
+    goals.write_text(json.dumps([[-1.0, -3.5], {"x": 3.8, "y": 2.2}]))
     proc = _mjnav(
         "demo",
         "--world",
         "rooms",
+        "--goals",
+        str(goals),
         "--rtf",
         str(RTF),
         "--json",
@@ -102,11 +106,17 @@ def test_demo_reaches_the_rooms_goal_from_an_unknown_map(tmp_path: Path) -> None
     assert proc.returncode == 0, stdout[-3000:]
     summary = json.loads(stdout.strip().splitlines()[-1])
     assert summary["reached"] is True and summary["collisions"] == 0
+    assert [g["result"] for g in summary["goals"]] == ["reached", "reached"]
+    first, second = summary["goals"]
+    assert second["goal_id"] != first["goal_id"]
+    # The second goal starts where the first ended and really drives (no instant "reached" on a stale path).
+    assert math.dist(second["start"], first["goal"]) < 0.2 and second["path_length_m"] > 5.0
     assert summary["v_max_mps"] == 0.5
     assert 0 < summary["optimal_length_m"] <= summary["path_length_m"] * 1.05
     assert summary["min_clearance_m"] > 0.0
     assert json.loads((out / "summary.json").read_text()) == summary
-    assert (out / "map.yaml").is_file() and (out / "map.pgm").is_file()
+    for name in ("map.yaml", "map.pgm", "scene.html"):
+        assert (out / name).is_file(), name
 
 
 def test_unreachable_and_occupied_goals_fail_with_the_right_reason(tmp_path: Path) -> None:

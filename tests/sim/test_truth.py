@@ -1,0 +1,39 @@
+"""The true static map of a world, for scoring runs."""
+
+from __future__ import annotations
+
+import mujoco
+import pytest
+
+from mjnav.mapping import GridFrame
+from mjnav.sim import Simulator
+from mjnav.sim.truth import shortest_length_m, static_occupancy
+
+
+def test_rooms_true_map_has_walls_and_free_start_and_goal() -> None:
+    sim = Simulator("rooms", lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    frame = GridFrame(0.05, (-6.0, -6.0), (240, 240))
+    occ = static_occupancy(sim.model, sim.data, frame)
+    for x, y in ((-5.0, 0.0), (5.0, 2.0), (0.0, 0.0)):  # outer walls and the interior cross
+        assert occ[frame.world_to_cell(x, y)], (x, y)
+    for x, y in ((-3.5, -3.5), (3.8, 2.2), (-5.5, 0.0)):  # start, goal, outside the building
+        assert not occ[frame.world_to_cell(x, y)], (x, y)
+
+
+def test_moving_obstacles_and_the_robot_are_not_in_the_static_map() -> None:
+    sim = Simulator("warehouse", lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    frame = GridFrame(0.05, (-9.0, -7.0), (280, 360))
+    occ = static_occupancy(sim.model, sim.data, frame)
+    start = sim.start_pose
+    assert not occ[frame.world_to_cell(start.x, start.y)]  # the robot stands there
+    movers = [b for b in range(sim.model.nbody) if sim.model.body_weldid[b] != 0 and b != sim.robot.root_body]
+    assert movers, "the warehouse should have moving bodies"
+
+
+def test_shortest_length_is_at_least_the_straight_line() -> None:
+    length = shortest_length_m("rooms", (-3.5, -3.5), (3.8, 2.2))
+    assert 9.28 < length < 11.0  # straight line is 9.27 m; the walls force a detour through the doorways
+    with pytest.raises(Exception):  # noqa: B017 - the goal lies inside a wall: any planning error
+        shortest_length_m("rooms", (-3.5, -3.5), (0.0, 0.0))
