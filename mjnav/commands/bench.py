@@ -10,35 +10,15 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
+from mjnav.commands._args import non_negative_float, positive_int
 
 ALGORITHMS = ("astar", "jps", "dijkstra", "greedy", "bfs", "dfs")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
-def _tolerance(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -75,8 +55,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         default="astar",
         help="algorithm (default astar; only astar, jps and dijkstra are optimal)",
     )
-    m.add_argument("--limit", type=_positive_int, default=None, help="only the first N scenarios")
-    m.add_argument("--tolerance", type=_tolerance, default=1e-4, help="absolute match tolerance, cells (default 1e-4)")
+    m.add_argument("--limit", type=positive_int, default=None, help="only the first N scenarios")
+    m.add_argument(
+        "--tolerance", type=non_negative_float, default=1e-4, help="absolute match tolerance, cells (default 1e-4)"
+    )
     m.add_argument("--json", action="store_true", help="print one JSON object")
     m.set_defaults(func=run_movingai)
 

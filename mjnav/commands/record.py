@@ -12,20 +12,11 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
-from mjnav.commands.sim import add_world_arguments, command_hook, non_negative_float
+from mjnav.commands._args import non_negative_float, positive_int
+from mjnav.commands.sim import add_world_arguments, command_hook
 
 if TYPE_CHECKING:
     from mjnav.sim import Simulator
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -40,11 +31,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     add_world_arguments(p)
     p.add_argument("--duration", type=non_negative_float, default=10.0, help="sim seconds to record (default 10)")
-    p.add_argument("--fps", type=_positive_int, default=30, help="frames per sim second (default 30)")
+    p.add_argument("--fps", type=positive_int, default=30, help="frames per sim second (default 30)")
     p.add_argument("--out", required=True, metavar="VIDEO.mp4", help="output MP4 file")
     p.add_argument("--camera", default="top", help="top (whole world from above), follow (chase) or a model camera")
-    p.add_argument("--width", type=_positive_int, default=640, help="frame width in pixels, even (default 640)")
-    p.add_argument("--height", type=_positive_int, default=480, help="frame height in pixels, even (default 480)")
+    p.add_argument("--width", type=positive_int, default=640, help="frame width in pixels, even (default 640)")
+    p.add_argument("--height", type=positive_int, default=480, help="frame height in pixels, even (default 480)")
     p.add_argument(
         "--cmd",
         nargs=2,

@@ -14,6 +14,8 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from mjnav.commands._args import non_negative_float
+
 if TYPE_CHECKING:
     from mjnav.sim import Simulator
     from mjnav.sim.runner import Hook
@@ -29,16 +31,6 @@ def parse_rtf(text: str) -> float | None:
         raise argparse.ArgumentTypeError(f"expected a positive number or 'max', got {text!r}") from None
     if not (math.isfinite(value) and value > 0.0):
         raise argparse.ArgumentTypeError(f"expected a positive number or 'max', got {text!r}")
-    return value
-
-
-def non_negative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value >= 0.0):
-        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {text!r}")
     return value
 
 
