@@ -1,11 +1,11 @@
 """Acceptance of issue 7 against a live stack (`mjnav up --port P --headless`, world rooms):
 
-* a plain Zenoh client (zenoh + rosbags only) decodes ``robot0/scan``, ``robot0/odom`` and — once the stack has a
-  mapper — ``robot0/map`` as standard ROS 2 messages with increasing stamps;
+* a plain Zenoh client (zenoh + rosbags only) decodes ``robot0/scan``, ``robot0/odom`` and ``robot0/map`` as
+  standard ROS 2 messages with increasing stamps;
 * the standalone example ``examples/zenoh_client.py`` runs without mjnav importable, prints scan and odom and sends
   a goal that arrives on ``robot0/goal``;
 * ``mjnav bag record --connect tcp/127.0.0.1:P --duration 6 out.mcap`` yields an MCAP that
-  ``mcap_ros2.reader.read_ros2_messages`` decodes, with scan and odom (and map) messages;
+  ``mcap_ros2.reader.read_ros2_messages`` decodes, with scan, odom and map messages;
 * ``mjnav up`` stops on SIGINT within 10 s with exit code 0.
 """
 
@@ -91,10 +91,10 @@ def _increasing(values: list[float]) -> bool:
 def test_plain_clients_bags_and_sigint_during_mjnav_up(tmp_path: Path) -> None:
     stack = load_stack()
     names = stack.names()
+    assert {"sim", "mapper"} <= set(names)
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
-    # `--set sim.world=rooms` is what `mjnav up --world rooms` stands for.
-    cmd = [sys.executable, "-m", "mjnav", "up", "--port", str(port), "--headless", "--set", "sim.world=rooms"]
+    cmd = [sys.executable, "-m", "mjnav", "up", "--port", str(port), "--headless", "--world", "rooms"]
     if "viz" in names:
         cmd += ["--set", "viz.web_port=0", "--set", "viz.zmq_port=0"]
     up = subprocess.Popen(cmd, cwd=REPO, env=_env(), text=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
@@ -115,9 +115,9 @@ def test_plain_clients_bags_and_sigint_during_mjnav_up(tmp_path: Path) -> None:
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
         )
-        topics = ["scan", "odom"] + (["map"] if "mapper" in names else [])
+        topics = ["scan", "odom", "map"]
         client = PlainClient(endpoint, topics, stack.namespace)
-        want = {"scan": 5, "odom": 20} | ({"map": 2} if "map" in topics else {})
+        want = {"scan": 5, "odom": 20, "map": 2}
         got = {k: len(v) for k, v in client.stamps.items()}
         assert client.wait_counts(want, 90.0), f"plain client got {got}"
         for name in topics:
@@ -173,6 +173,6 @@ def test_plain_clients_bags_and_sigint_during_mjnav_up(tmp_path: Path) -> None:
             counts[m.channel.topic] = counts.get(m.channel.topic, 0) + 1
             if m.channel.topic == f"/{stack.namespace}/scan":
                 assert len(m.ros_msg.ranges) > 0
-    for name in ["scan", "odom"] + (["map"] if "mapper" in names else []):
+    for name in ["scan", "odom", "map"]:
         assert counts.get(f"/{stack.namespace}/{name}", 0) > 0, f"no {name} in the bag: {counts}"
     assert counts[f"/{stack.namespace}/odom"] > 100  # 50 Hz for about 6 s
