@@ -30,7 +30,7 @@ from mjnav.sim.truth import shortest_length_m
 from mjnav.sim.worlds import world_info
 
 REPO = Path(__file__).resolve().parent.parent
-SERVICES = ("sim", "mapper", "planner", "smoother", "controller")
+SERVICES = ("sim", "mapper", "planner", "smoother", "controller", "viz")
 _TICKS = os.sysconf("SC_CLK_TCK")
 
 
@@ -75,7 +75,7 @@ def run_once(world: str, rtf: str) -> dict[str, object]:
             status = bus.subscribe("status", service="*")
             if not wait_until(lambda: set(SERVICES) <= set(bus.alive_services(0.5)), 180.0):
                 raise RuntimeError("the stack did not come up")
-            if not wait_until(lambda: len(status.latest_by_key()) >= len(SERVICES), 30.0):
+            if not wait_until(lambda: set(SERVICES) <= {s.service for s in status.latest_by_key().values()}, 30.0):
                 raise RuntimeError("no status from every service")
             pids = {s.service: int(s.pid) for s in status.latest_by_key().values()}
             config = json.loads(bus.call("config", service="controller").data)
