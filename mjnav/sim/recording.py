@@ -105,11 +105,15 @@ class Recorder:
         glob.offwidth = max(int(glob.offwidth), width)
         glob.offheight = max(int(glob.offheight), height)
         model.vis.quality.offsamples = 0
+        gl = None
         try:
-            self._gl = _gl_context(self.backend, width, height)
-            self._gl.make_current()
+            gl = _gl_context(self.backend, width, height)
+            gl.make_current()
             self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+            self._gl = gl
         except Exception as exc:  # ImportError, GL errors, mujoco.FatalError: all mean "cannot render here"
+            if gl is not None:
+                gl.free()
             raise RenderBackendUnavailableError(
                 f"cannot create an offscreen OpenGL context with {self.backend}: {exc}; "
                 f"packages: {', '.join(f'{k}: {v}' for k, v in BACKENDS.items())}"
@@ -124,8 +128,14 @@ class Recorder:
         self._pixels = np.empty((height, width, 3), dtype=np.uint8)
         self._writer: Generator[None, bytes | None, None] | None = None
         if self.path is not None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._writer = self._open_writer(crf)
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._writer = self._open_writer(crf)
+            except Exception:
+                self._closed = True  # nothing to flush: free the GL resources now, not never
+                self._context.free()
+                self._gl.free()
+                raise
 
     # ----------------------------------------------------------------- setup
     def _make_camera(self, camera: str, track_body: int | None) -> mujoco.MjvCamera:
