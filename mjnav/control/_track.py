@@ -193,6 +193,61 @@ class PathCache:
         return prepared, True
 
 
+def signed_cross_track(pts: FloatArray, k: int, x: float, y: float, d2: float) -> float:
+    """Distance ``sqrt(d2)`` from (x, y) to segment k, positive when the point lies left of the segment."""
+    sx, sy = pts[k + 1, 0] - pts[k, 0], pts[k + 1, 1] - pts[k, 1]
+    side = sx * (y - pts[k, 1]) - sy * (x - pts[k, 0])
+    return math.copysign(math.sqrt(d2), side) if side != 0.0 else math.sqrt(d2)
+
+
+class PathProgress:
+    """Where a tracker stands on its current path; the state every tracker shares.
+
+    Holds the prepared-path cache, the closest segment (searched over the whole path on the first call, then
+    forward only, within a window), and the goal latch. A path with new contents restarts all of it.
+    """
+
+    __slots__ = ("cache", "fresh", "index", "reached")
+
+    def __init__(self) -> None:
+        self.cache = PathCache()
+        self.index = 0
+        self.fresh = True
+        self.reached = False
+
+    def reset(self) -> None:
+        """Forget the path, the closest segment and the goal latch."""
+        self.cache.clear()
+        self.index = 0
+        self.fresh = True
+        self.reached = False
+
+    def locate(
+        self, path: ArrayLike, x: float, y: float, search_window_m: float
+    ) -> tuple[PreparedPath, int, float, float, bool]:
+        """Prepare ``path`` (cached) and find the robot's closest point on it.
+
+        Returns:
+            (prepared path, segment k, fraction t along it, squared distance d² in m², whether the path is new).
+        """
+        prepared, is_new = self.cache.get(path)
+        if is_new:
+            self.index = 0
+            self.fresh = True
+            self.reached = False
+        window = math.inf if self.fresh else search_window_m
+        k, t, d2 = project_forward(prepared.points, prepared.cum, x, y, self.index, window)
+        self.index = k
+        self.fresh = False
+        return prepared, k, t, d2, is_new
+
+    def at_goal(self, distance_to_goal_m: float, remaining_m: float, tolerance_m: float) -> bool:
+        """Latch and return "reached" once both the goal and the rest of the path are within the tolerance."""
+        if not self.reached and distance_to_goal_m <= tolerance_m and remaining_m <= tolerance_m:
+            self.reached = True
+        return self.reached
+
+
 def unpack_pose(pose: PoseInput) -> tuple[float, float, float]:
     """(x m, y m, θ rad) floats from a Pose2D, a 3-tuple or a (3,) array; rejects non-finite values."""
     if isinstance(pose, Pose2D):

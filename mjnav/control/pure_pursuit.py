@@ -8,7 +8,7 @@ from typing import Literal
 
 from numpy.typing import ArrayLike
 
-from mjnav.control._track import PathCache, PoseInput, lookahead_point, project_forward, unpack_pose
+from mjnav.control._track import PathProgress, PoseInput, lookahead_point, signed_cross_track, unpack_pose
 from mjnav.control.regulation import (
     adaptive_lookahead,
     approach_regulated_speed,
@@ -138,36 +138,30 @@ class PurePursuit:
 
     def __init__(self, params: PurePursuitParams | None = None) -> None:
         self.params = params if params is not None else PurePursuitParams()
-        self._cache = PathCache()
-        self._index = 0
-        self._fresh = True
-        self._reached = False
+        self._progress = PathProgress()
         self._mode: Mode = "idle"
         self._last = (0.0, 0.0, 0.0, math.nan, math.nan, math.nan, math.nan, 0.0, 0.0)
 
     def reset(self) -> None:
         """Forget the path and the tracking state (call when a new goal or path arrives)."""
-        self._cache.clear()
-        self._index = 0
-        self._fresh = True
-        self._reached = False
+        self._progress.reset()
         self._mode = "idle"
 
     @property
     def goal_reached(self) -> bool:
         """True once the robot has stopped within the goal tolerance (latched until reset / new path)."""
-        return self._reached
+        return self._progress.reached
 
     @property
     def closest_index(self) -> int:
         """Segment index of the last closest point (the forward search starts here)."""
-        return self._index
+        return self._progress.index
 
     @property
     def status(self) -> PursuitStatus:
         """Details of the last :meth:`compute` call."""
         ct, la, kap, lx, ly, rem, dg, v, w = self._last
-        return PursuitStatus(self._mode, self._index, ct, la, (lx, ly), kap, rem, dg, v, w)
+        return PursuitStatus(self._mode, self._progress.index, ct, la, (lx, ly), kap, rem, dg, v, w)
 
     def compute(
         self,
@@ -214,27 +208,14 @@ class PurePursuit:
         target = p.desired_speed_mps if target_speed_mps is None else float(target_speed_mps)
         if not (math.isfinite(target) and target >= 0.0):
             raise ValueError(f"target_speed_mps must be finite and >= 0, got {target_speed_mps}")
-        prepared, is_new = self._cache.get(path)
-        if is_new:
-            self._index = 0
-            self._fresh = True
-            self._reached = False
-
+        prepared, k, t, d2, _ = self._progress.locate(path, x, y, p.search_window_m)
         pts = prepared.points
-        window = math.inf if self._fresh else p.search_window_m  # first call on a path: whole path
-        k, t, d2 = project_forward(pts, prepared.cum, x, y, self._index, window)
-        self._index = k
-        self._fresh = False
         remaining = prepared.remaining(k, t)
         goal_x, goal_y = pts[-1, 0], pts[-1, 1]
         dist_goal = math.hypot(goal_x - x, goal_y - y)
-        # signed cross-track: side of the robot relative to segment k
-        sx, sy = pts[k + 1, 0] - pts[k, 0], pts[k + 1, 1] - pts[k, 1]
-        side = sx * (y - pts[k, 1]) - sy * (x - pts[k, 0])
-        cross = math.copysign(math.sqrt(d2), side) if side != 0.0 else math.sqrt(d2)
+        cross = signed_cross_track(pts, k, x, y, d2)
 
-        if self._reached or (dist_goal <= p.goal_tolerance_m and remaining <= p.goal_tolerance_m):
-            self._reached = True
+        if self._progress.at_goal(dist_goal, remaining, p.goal_tolerance_m):
             self._mode = "reached"
             self._last = (cross, 0.0, 0.0, goal_x, goal_y, remaining, dist_goal, 0.0, 0.0)
             return 0.0, 0.0

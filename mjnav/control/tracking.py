@@ -7,7 +7,14 @@ from dataclasses import dataclass
 
 from numpy.typing import ArrayLike
 
-from mjnav.control._track import PathCache, PoseInput, PreparedPath, project_forward, unpack_pose
+from mjnav.control._track import (
+    PathProgress,
+    PoseInput,
+    PreparedPath,
+    project_forward,
+    signed_cross_track,
+    unpack_pose,
+)
 from mjnav.control.regulation import (
     approach_regulated_speed,
     clamp_yaw_rate,
@@ -42,12 +49,10 @@ class TrackingError:
     distance_to_goal_m: float
 
 
-def _error(prepared: PreparedPath, x: float, y: float, th: float, start: int, window_m: float) -> TrackingError:
+def _error(prepared: PreparedPath, x: float, y: float, th: float, k: int, t: float, d2: float) -> TrackingError:
+    """The tracking error of pose (x, y, θ) whose closest point is at fraction t of segment k (distance² d2)."""
     pts = prepared.points
-    k, t, d2 = project_forward(pts, prepared.cum, x, y, start, window_m)
-    sx, sy = pts[k + 1, 0] - pts[k, 0], pts[k + 1, 1] - pts[k, 1]
-    side = sx * (y - pts[k, 1]) - sy * (x - pts[k, 0])
-    cross = math.copysign(math.sqrt(d2), side) if side != 0.0 else math.sqrt(d2)
+    cross = signed_cross_track(pts, k, x, y, d2)
     head = prepared.headings
     path_heading = wrap_angle(head[k] + t * wrap_angle(head[k + 1] - head[k]))
     curv = prepared.curvature
@@ -82,7 +87,8 @@ def tracking_error(
     if not 0 <= start_index < prepared.points.shape[0] - 1:
         raise ValueError(f"start_index must be in [0, {prepared.points.shape[0] - 2}], got {start_index}")
     x, y, th = unpack_pose(pose)
-    return _error(prepared, x, y, th, start_index, search_window_m)
+    k, t, d2 = project_forward(prepared.points, prepared.cum, x, y, start_index, search_window_m)
+    return _error(prepared, x, y, th, k, t, d2)
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,18 +149,12 @@ class ErrorFeedbackTracker:
 
     def __init__(self, params: TrackerParams) -> None:
         self.params = params
-        self._cache = PathCache()
-        self._index = 0
-        self._fresh = True
-        self._reached = False
+        self._progress = PathProgress()
         self._last_error: TrackingError | None = None
 
     def reset(self) -> None:
         """Forget the path and all tracking/controller state."""
-        self._cache.clear()
-        self._index = 0
-        self._fresh = True
-        self._reached = False
+        self._progress.reset()
         self._last_error = None
         self._reset_controller()
 
@@ -167,7 +167,7 @@ class ErrorFeedbackTracker:
     @property
     def goal_reached(self) -> bool:
         """True once stopped within the goal tolerance (latched until reset / new path)."""
-        return self._reached
+        return self._progress.reached
 
     @property
     def last_error(self) -> TrackingError | None:
@@ -212,19 +212,12 @@ class ErrorFeedbackTracker:
         step = p.dt_s if dt_s is None else float(dt_s)
         if not (math.isfinite(target) and target >= 0.0 and math.isfinite(step) and step > 0.0):
             raise ValueError(f"need target speed >= 0 and dt > 0, got ({target_speed_mps}, {dt_s})")
-        prepared, is_new = self._cache.get(path)
+        prepared, k, t, d2, is_new = self._progress.locate(path, x, y, p.search_window_m)
         if is_new:
-            self._index = 0
-            self._fresh = True
-            self._reached = False
             self._reset_controller()
-        window = math.inf if self._fresh else p.search_window_m  # first call on a path: whole path
-        err = _error(prepared, x, y, th, self._index, window)
-        self._index = err.segment_index
-        self._fresh = False
+        err = _error(prepared, x, y, th, k, t, d2)
         self._last_error = err
-        if self._reached or (err.distance_to_goal_m <= p.goal_tolerance_m and err.remaining_m <= p.goal_tolerance_m):
-            self._reached = True
+        if self._progress.at_goal(err.distance_to_goal_m, err.remaining_m, p.goal_tolerance_m):
             return 0.0, 0.0
         if abs(err.heading_error_rad) > p.rotate_threshold_rad:
             return 0.0, rotate_in_place_rate(-err.heading_error_rad, p.rotate_gain_per_s, p.max_rotate_speed_radps)
