@@ -107,14 +107,6 @@ def test_plain_clients_bags_and_sigint_during_mjnav_up(tmp_path: Path) -> None:
     stopped_in: float | None = None
     code: int | None = None
     try:
-        recorder = subprocess.Popen(
-            [sys.executable, "-m", "mjnav", "bag", "record", "--connect", endpoint, "--duration", "6", str(bag)],
-            cwd=REPO,
-            env=_env(),
-            text=True,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-        )
         topics = ["scan", "odom", "map"]
         client = PlainClient(endpoint, topics, stack.namespace)
         want = {"scan": 5, "odom": 20, "map": 2}
@@ -123,6 +115,17 @@ def test_plain_clients_bags_and_sigint_during_mjnav_up(tmp_path: Path) -> None:
         for name in topics:
             assert client.types[name] == TYPES[name]
             assert _increasing(client.stamps[name]), f"{name} stamps do not increase: {client.stamps[name][:10]}"
+
+        # The stack is up (the mapper publishes): on a fresh clone its first start compiles the numba kernels, which
+        # can outlast a 6 s bag started together with the launcher.
+        recorder = subprocess.Popen(
+            [sys.executable, "-m", "mjnav", "bag", "record", "--connect", endpoint, "--duration", "6", str(bag)],
+            cwd=REPO,
+            env=_env(),
+            text=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+        )
 
         with Bus.open(BusConfig(connect=(endpoint,)), stack.namespace) as me:
             goals = me.subscribe("goal")
