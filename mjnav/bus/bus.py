@@ -29,7 +29,7 @@ from mjnav.msgs.topics import (
     endpoint,
     topic,
 )
-from mjnav.msgs.validate import validate
+from mjnav.msgs.validate import validate, validator
 
 log = logging.getLogger("mjnav.bus")
 
@@ -107,10 +107,11 @@ class Publisher:
         self.key = key
         self._bus = bus
         self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos(row.kind))
+        self._encode = codec.encoder(row.msgtype)
 
     def put(self, msg: Any) -> None:
         """Encode ``msg`` (must be of the topic's type) and publish it."""
-        self.put_bytes(codec.encode(msg, self.topic.msgtype))
+        self.put_bytes(self._encode(msg))
 
     def put_bytes(self, payload: bytes) -> None:
         """Publish an already-encoded CDR payload."""
@@ -163,6 +164,8 @@ class Subscription:
         self.count = 0
         self._wildcard = "*" in key
         self._encoding = cdr_encoding(row.msgtype)
+        self._decode = codec.decoder(row.msgtype)
+        self._validate = validator(row.msgtype)
         self._sub = bus.session.declare_subscriber(key, self._on_sample)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
@@ -174,8 +177,8 @@ class Subscription:
         msg = None
         if reason is None:
             try:
-                msg = codec.decode(sample.payload.to_bytes(), self.topic.msgtype)
-                validate(msg)
+                msg = self._decode(sample.payload.to_bytes())
+                self._validate(msg)
             except codec.MessageError as exc:
                 reason = str(exc)
         if reason is not None:

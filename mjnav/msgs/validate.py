@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import cache
 from typing import Any
 
 import numpy as np
 
-from mjnav.msgs.codec import MessageError, check_finite
+from mjnav.msgs.codec import MessageError, all_finite, check_finite
 
 
 def _laser_scan(msg: Any) -> None:
@@ -74,7 +75,19 @@ def validate(msg: Any) -> None:
     Every float field must be finite (laser ranges excepted, see REP-117), then type-specific rules apply:
     scan range limits and sizes, grid size and cell values, unit quaternions in poses.
     """
-    check_finite(msg)
-    check = _CHECKS.get(msg.__msgtype__)
-    if check is not None:
-        check(msg)
+    validator(msg.__msgtype__)(msg)
+
+
+@cache
+def validator(typename: str) -> Callable[[Any], None]:
+    """:func:`validate` for messages of ``typename``, resolved once (the bus applies it to every message)."""
+    finite = all_finite(typename)
+    rule = _CHECKS.get(typename)
+
+    def check(msg: Any) -> None:
+        if not finite(msg):
+            check_finite(msg)  # raises, naming the field
+        if rule is not None:
+            rule(msg)
+
+    return check
