@@ -148,6 +148,19 @@ def transform_stamped(t_s: float, parent_frame: str, child_frame: str, pose: Pos
     )
 
 
+def transform_stamped_3d(
+    t_s: float, parent_frame: str, child_frame: str, position_m: Any, orientation_xyzw: Any
+) -> Any:
+    """geometry_msgs/TransformStamped placing ``child_frame`` at a 3D position and (x, y, z, w) orientation."""
+    px, py, pz = (float(v) for v in position_m)
+    qx, qy, qz, qw = (float(v) for v in orientation_xyzw)
+    return _TransformStamped(
+        header=header(t_s, parent_frame),
+        child_frame_id=child_frame,
+        transform=_Transform(translation=_Vector3(x=px, y=py, z=pz), rotation=_Quaternion(x=qx, y=qy, z=qz, w=qw)),
+    )
+
+
 def tf_message(*transforms: Any) -> Any:
     """tf2_msgs/TFMessage holding ``transforms`` (geometry_msgs/TransformStamped)."""
     return _TFMessage(transforms=list(transforms))

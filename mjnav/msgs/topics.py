@@ -126,6 +126,14 @@ TOPICS: dict[str, Topic] = {
             "True pose `map` → `base_link`",
         ),
         Topic(
+            "obstacles",
+            "tf2_msgs/msg/TFMessage",
+            _S,
+            "sim",
+            "10 Hz",
+            "True poses `map` → body of the world's moving bodies (worlds that have some)",
+        ),
+        Topic(
             "sim_status",
             "mjnav_msgs/msg/SimStatus",
             _S,

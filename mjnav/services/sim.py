@@ -1,8 +1,8 @@
 """The sim service: the MuJoCo robot on the bus.
 
 Publishes ``clock``, ``scan``, ``odom`` (wheel odometry, drifting), ``imu``, ``joint_states``, ``tf``
-(``odom → base_link``), ``ground_truth`` (``map → base_link``) and ``sim_status`` (collisions, real-time factor),
-all stamped in sim time, and drives the wheels
+(``odom → base_link``), ``ground_truth`` (``map → base_link``), ``sim_status`` (collisions, real-time factor) and,
+in worlds with moving bodies, ``obstacles`` (their true poses), all stamped in sim time, and drives the wheels
 from the newest ``cmd_vel``. The simulator's own watchdog zeroes the wheels when that command is older than
 ``watchdog_timeout_s`` of sim time.
 
@@ -40,6 +40,8 @@ class SimConfig:
         clock_rate_hz: ``clock`` messages per sim second; also how often ``cmd_vel`` is applied.
         odom_rate_hz: ``odom``, ``tf``, ``joint_states`` and ``ground_truth`` per sim second.
         imu_rate_hz: ``imu`` per sim second.
+        obstacles_rate_hz: ``obstacles`` (true poses of the world's moving bodies) per sim second; worlds without
+            moving bodies publish none.
         watchdog_timeout_s: zero the wheels when the newest command is this old (sim seconds).
         lidar_beams, lidar_rate_hz, lidar_range_min_m, lidar_range_max_m, lidar_noise_std_m: the lidar.
         record_path: write an MP4 of the run here ("" = no recording).
@@ -54,6 +56,7 @@ class SimConfig:
     clock_rate_hz: float = 100.0
     odom_rate_hz: float = 50.0
     imu_rate_hz: float = 100.0
+    obstacles_rate_hz: float = 10.0
     watchdog_timeout_s: float = 0.5
     lidar_beams: int = 360
     lidar_rate_hz: float = 10.0
@@ -67,7 +70,14 @@ class SimConfig:
     def __post_init__(self) -> None:
         if not self.rtf >= 0.0:
             raise ValueError(f"rtf must be >= 0 (0 = as fast as possible), got {self.rtf}")
-        for name in ("clock_rate_hz", "odom_rate_hz", "imu_rate_hz", "watchdog_timeout_s", "record_fps"):
+        for name in (
+            "clock_rate_hz",
+            "odom_rate_hz",
+            "imu_rate_hz",
+            "obstacles_rate_hz",
+            "watchdog_timeout_s",
+            "record_fps",
+        ):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.record_camera not in ("top", "follow"):
@@ -104,6 +114,9 @@ class SimBridge:
             name: bus.publisher(name)
             for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "ground_truth", "sim_status")
         }
+        # Only worlds with moving bodies (the warehouse's carts) declare the topic.
+        self._obstacles = bus.publisher("obstacles") if sim.moving_body_names else None
+        self._obstacles_due = _Every(config.obstacles_rate_hz)
         self._clock = _Every(config.clock_rate_hz)
         self._odom = _Every(config.odom_rate_hz)
         self._imu = _Every(config.imu_rate_hz)
@@ -173,6 +186,15 @@ class SimBridge:
                     collisions=sim.collisions,
                     real_time_factor=t / wall if wall > 0 else 0.0,
                     watchdog_tripped=sim.watchdog_tripped,
+                )
+            )
+        if self._obstacles is not None and self._obstacles_due.due(t):
+            self._obstacles.put(
+                ros.tf_message(
+                    *(
+                        ros.transform_stamped_3d(t, "map", body.name, body.position_m, body.orientation_xyzw)
+                        for body in sim.moving_body_poses()
+                    )
                 )
             )
         if self._imu.due(t):

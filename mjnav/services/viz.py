@@ -4,7 +4,8 @@ Starts meshcat's web + ZMQ server in-process (bound to ``host``, loopback by def
 ``open_browser`` is set *and* a display exists *and* the stack is not ``--headless``), builds the scene from the
 MJCF world the sim runs (named in ``<ns>/sim_status`` — so a replayed bag shows its world too — or asked on
 ``<ns>/config/sim``, unless ``world`` is set) and, at ``rate_hz`` on wall time, draws the newest robot pose
-(``ground_truth`` or ``odom``), scan, map, costmap, plan, path, and every goal and goal status. A message that
+(``ground_truth`` or ``odom``), scan, map, costmap, plan, path, the poses of the world's moving bodies
+(``obstacles``), and every goal and goal status. A message that
 cannot be drawn is logged with its topic and skipped. With ``static_html`` set, the scene is written there as a
 self-contained HTML snapshot when the service stops (and every ``static_html_period_s``).
 """
@@ -101,7 +102,8 @@ class VizService(Service[VizConfig]):
             self.log.info("meshcat viewer at %s (drawing commands on %s)", self.server.web_url, self.server.zmq_url)
         self.scene = Scene(self.client.send if self.client is not None else None)
         self.view = NavView(self.scene, scan_point_size_m=cfg.scan_point_size_m, pose_topic=cfg.pose_topic)
-        snapshots = [cfg.pose_topic, "scan", "map", "plan", "path"] + (["costmap"] if cfg.draw_costmap else [])
+        snapshots = [cfg.pose_topic, "scan", "map", "plan", "path", "obstacles"]
+        snapshots += ["costmap"] if cfg.draw_costmap else []
         self.snapshot_subs = {name: self.bus.subscribe(name) for name in snapshots}
         self.event_subs = {name: self.bus.subscribe(name) for name in ("goal", "goal_status")}
         self.sim_status = self.bus.subscribe("sim_status")
@@ -205,10 +207,10 @@ class VizService(Service[VizConfig]):
             self.view.frame_camera(model.view_bounds())
         self.view.draw_model(model)
         self.log.info(
-            "drawing world %s: %d static geoms, %d moving, robot of %d geoms",
+            "drawing world %s: %d static geoms, %d moving bodies, robot of %d geoms",
             world or "(none)",
             len(model.world_geoms) if world else 0,
-            len(model.moving_geoms),
+            len(model.moving_bodies),
             len(model.robot_geoms),
         )
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 _EXPORTS: dict[str, str] = {
     "Simulator": "mjnav.sim.simulator",
     "WheelStates": "mjnav.sim.simulator",
+    "BodyPose": "mjnav.sim.simulator",
     "ImuReading": "mjnav.sim.simulator",
     "DEFAULT_LIDAR": "mjnav.sim.simulator",
     "DEFAULT_ODOMETRY": "mjnav.sim.simulator",
@@ -49,6 +50,7 @@ _EXPORTS: dict[str, str] = {
 __all__ = [
     "DEFAULT_LIDAR",
     "DEFAULT_ODOMETRY",
+    "BodyPose",
     "Hook",
     "ImuReading",
     "InvalidCommandError",
@@ -92,7 +94,7 @@ if TYPE_CHECKING:
     from mjnav.sim.odometry import OdometryConfig, OdometryEstimate
     from mjnav.sim.recording import Recorder
     from mjnav.sim.runner import Hook, RunStats, SimRunner
-    from mjnav.sim.simulator import DEFAULT_LIDAR, DEFAULT_ODOMETRY, ImuReading, Simulator, WheelStates
+    from mjnav.sim.simulator import DEFAULT_LIDAR, DEFAULT_ODOMETRY, BodyPose, ImuReading, Simulator, WheelStates
     from mjnav.sim.worldgen import write_scene_from_map
     from mjnav.sim.worlds import WorldInfo, available_worlds, resolve_world, world_info
 

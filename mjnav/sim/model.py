@@ -147,6 +147,28 @@ def _subtree_bodies(model: mujoco.MjModel, root: int) -> list[int]:
     return bodies
 
 
+def is_static_body(model: mujoco.MjModel, body: int) -> bool:
+    """Whether ``body`` and all its ancestors are welded to the world (no joints)."""
+    while body > 0:
+        if int(model.body_jntnum[body]) > 0:
+            return False
+        body = int(model.body_parentid[body])
+    return True
+
+
+def moving_bodies(model: mujoco.MjModel, robot: RobotBinding) -> tuple[int, ...]:
+    """Ids of the bodies outside the robot that can move (they or an ancestor have a joint), e.g. the
+    warehouse's carts."""
+    robot_bodies = {int(model.geom_bodyid[g]) for g in robot.robot_geoms} | {robot.root_body}
+    robot_bodies.update(_subtree_bodies(model, robot.root_body))
+    return tuple(b for b in range(1, model.nbody) if b not in robot_bodies and not is_static_body(model, b))
+
+
+def body_name(model: mujoco.MjModel, body: int) -> str:
+    """The body's MJCF name, or ``body_<id>`` for an unnamed body."""
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body_{body}"
+
+
 def _bind_robot(model: mujoco.MjModel, prefix: str, floors: list[str], path: Path) -> RobotBinding:
     obj = mujoco.mjtObj
     root = _id(model, obj.mjOBJ_BODY, prefix + _BASE, path)

@@ -31,7 +31,7 @@ from mjnav.geometry import Pose2D
 from mjnav.motion import DiffDriveKinematics
 from mjnav.sim.errors import InvalidCommandError, SimError
 from mjnav.sim.lidar import Lidar, LidarConfig, LidarScan
-from mjnav.sim.model import RobotBinding, load_world, robot_radius, root_pose
+from mjnav.sim.model import RobotBinding, body_name, load_world, moving_bodies, robot_radius, root_pose
 from mjnav.sim.odometry import OdometryConfig, OdometryEstimate, WheelOdometry
 from mjnav.sim.worlds import WorldInfo
 
@@ -58,6 +58,21 @@ class WheelStates:
     names: tuple[str, str]
     position_rad: NDArray[np.float64]
     velocity_radps: NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class BodyPose:
+    """Pose of a named body in the map frame.
+
+    Attributes:
+        name: MJCF body name.
+        position_m: (3,) position, metres.
+        orientation_xyzw: (4,) orientation quaternion (x, y, z, w).
+    """
+
+    name: str
+    position_m: NDArray[np.float64]
+    orientation_xyzw: NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,6 +141,8 @@ class Simulator:
         self._robot: RobotBinding = loaded.robot
         self._kinematics = DiffDriveKinematics(loaded.robot.wheel_diameter_m, loaded.robot.wheel_separation_m)
         self._info: WorldInfo = loaded.info
+        self._moving = moving_bodies(self._model, self._robot)
+        self._moving_names = tuple(body_name(self._model, b) for b in self._moving)
         self._dt = float(self._model.opt.timestep)
         parent = rng if rng is not None else np.random.default_rng(seed)
         self._rng_lidar, self._rng_odom, self._rng_imu, self._rng_enc = parent.spawn(4)
@@ -186,6 +203,11 @@ class Simulator:
     def model(self) -> mujoco.MjModel:
         """The compiled MuJoCo model (read it; changing it changes the physics)."""
         return self._model
+
+    @property
+    def moving_body_names(self) -> tuple[str, ...]:
+        """Names of the world's moving bodies outside the robot (see :meth:`moving_body_poses`)."""
+        return self._moving_names
 
     @property
     def data(self) -> mujoco.MjData:
@@ -410,6 +432,16 @@ class Simulator:
     def ground_truth_pose(self) -> Pose2D:
         """True planar pose of base_link in the map frame (``map → base_link``), metres and radians."""
         return root_pose(self._model, self._data.qpos, self._robot)
+
+    def moving_body_poses(self) -> list[BodyPose]:
+        """True poses in the map frame of the world's moving bodies (e.g. the warehouse's carts), in
+        :attr:`moving_body_names` order."""
+        d = self._data
+        out = []
+        for name, b in zip(self._moving_names, self._moving, strict=True):
+            w, x, y, z = (float(v) for v in d.xquat[b])
+            out.append(BodyPose(name, np.array(d.xpos[b], dtype=np.float64), np.array([x, y, z, w])))
+        return out
 
     def body_velocity(self) -> tuple[float, float]:
         """True body twist (v m/s along base_link x, ω rad/s about z) measured from the physics state."""

@@ -43,10 +43,18 @@ def quaternion_matrix(x: float, y: float, z: float, w: float) -> NDArray[np.floa
 
 def pose_msg_matrix(pose: Any) -> NDArray[np.float64]:
     """(4, 4) transform of a geometry_msgs/Pose (position in metres, any orientation)."""
-    q = pose.orientation
+    return _matrix(pose.position, pose.orientation)
+
+
+def transform_msg_matrix(transform: Any) -> NDArray[np.float64]:
+    """(4, 4) matrix of a geometry_msgs/Transform (translation in metres, any rotation)."""
+    return _matrix(transform.translation, transform.rotation)
+
+
+def _matrix(p: Any, q: Any) -> NDArray[np.float64]:
     out = np.eye(4)
     out[:3, :3] = quaternion_matrix(q.x, q.y, q.z, q.w)
-    out[:3, 3] = (pose.position.x, pose.position.y, pose.position.z)
+    out[:3, 3] = (p.x, p.y, p.z)
     return out
 
 

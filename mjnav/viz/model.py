@@ -5,7 +5,8 @@ geom (alpha > 0, geom group 0–2 as in MuJoCo's viewer) is described by a :clas
 sizes, its colour as MuJoCo would render it (geom ``rgba`` when set explicitly, else the material colour times the
 mean texture colour) and its pose. World-body geoms are posed in the ``map`` frame; robot geoms relative to
 ``base_link`` (so drawing the robot at a pose is one transform); geoms of other moving bodies (the warehouse's
-carts) are posed where the model starts them — their later motion is not on the bus.
+carts) relative to their body, a :class:`MovingBody` that starts where the model puts it and follows the sim's
+``obstacles`` topic (transforms ``map`` → body name).
 """
 
 from __future__ import annotations
@@ -49,6 +50,21 @@ class VisualGeom:
 
 
 @dataclass(frozen=True)
+class MovingBody:
+    """A body outside the robot that moves (e.g. a warehouse cart).
+
+    Attributes:
+        name: MJCF body name (``body_<id>`` when unnamed): the ``child_frame_id`` of its transform on ``obstacles``.
+        pose: (4, 4) initial pose of the body in ``map``.
+        geoms: its visible geoms, posed relative to the body.
+    """
+
+    name: str
+    pose: NDArray[np.float64]
+    geoms: tuple[VisualGeom, ...]
+
+
+@dataclass(frozen=True)
 class VisualModel:
     """The drawable content of a world.
 
@@ -56,7 +72,7 @@ class VisualModel:
         name: world name (file stem).
         path: MJCF file.
         world_geoms: static geoms in the ``map`` frame (floor, walls, furniture).
-        moving_geoms: geoms of non-robot bodies with joints, at their initial pose in ``map``.
+        moving_bodies: bodies outside the robot that move, with their geoms.
         robot_geoms: robot geoms relative to ``base_link``.
         laser_pose: (4, 4) pose of the lidar (frame ``laser``) relative to ``base_link``.
         start: robot start pose in ``map``.
@@ -67,7 +83,7 @@ class VisualModel:
     name: str
     path: Path
     world_geoms: tuple[VisualGeom, ...]
-    moving_geoms: tuple[VisualGeom, ...]
+    moving_bodies: tuple[MovingBody, ...]
     robot_geoms: tuple[VisualGeom, ...]
     laser_pose: NDArray[np.float64]
     start: Pose2D
@@ -99,7 +115,7 @@ def load_visual_model(world: str | Path) -> VisualModel:
         mjnav.sim.UnknownWorldError, mjnav.sim.ModelLoadError, mjnav.sim.RobotNotFoundError: as
             :func:`mjnav.sim.model.load_world`.
     """
-    from mjnav.sim.model import load_world
+    from mjnav.sim.model import body_name, is_static_body, load_world, moving_bodies
 
     loaded = load_world(world)
     model, robot = loaded.model, loaded.robot
@@ -112,7 +128,8 @@ def load_visual_model(world: str | Path) -> VisualModel:
     plane_half = _plane_extent(loaded.info.bounds_m)
 
     world_geoms: list[VisualGeom] = []
-    moving: list[VisualGeom] = []
+    body_pose = {b: homogeneous(data.xmat[b].reshape(3, 3), data.xpos[b]) for b in moving_bodies(model, robot)}
+    moving: dict[int, list[VisualGeom]] = {b: [] for b in body_pose}
     robot_list: list[VisualGeom] = []
     for g in range(model.ngeom):
         if int(model.geom_group[g]) > 2:
@@ -139,10 +156,12 @@ def load_visual_model(world: str | Path) -> VisualModel:
         if g in robot_geoms:
             name = name.removeprefix(robot.prefix)
             robot_list.append(VisualGeom(name, shape, size3, rgba, base_inv @ pose, vertices, faces))
-        elif _static(model, g):
+        elif is_static_body(model, int(model.geom_bodyid[g])):
             world_geoms.append(VisualGeom(name, shape, size3, rgba, pose, vertices, faces))
         else:
-            moving.append(VisualGeom(name, shape, size3, rgba, pose, vertices, faces))
+            body = int(model.geom_bodyid[g])
+            rel = np.linalg.inv(body_pose[body]) @ pose
+            moving[body].append(VisualGeom(name, shape, size3, rgba, rel, vertices, faces))
 
     lidar = homogeneous(data.site_xmat[robot.lidar_site].reshape(3, 3), data.site_xpos[robot.lidar_site])
     info = loaded.info
@@ -150,23 +169,15 @@ def load_visual_model(world: str | Path) -> VisualModel:
         name=info.name,
         path=info.path,
         world_geoms=tuple(world_geoms),
-        moving_geoms=tuple(moving),
+        moving_bodies=tuple(
+            MovingBody(body_name(model, b), body_pose[b], tuple(geoms)) for b, geoms in moving.items() if geoms
+        ),
         robot_geoms=tuple(robot_list),
         laser_pose=base_inv @ lidar,
         start=info.start,
         goal=info.goal,
         bounds_m=info.bounds_m,
     )
-
-
-def _static(model: mujoco.MjModel, g: int) -> bool:
-    """Whether geom ``g``'s body and all its ancestors are welded to the world (no joints)."""
-    body = int(model.geom_bodyid[g])
-    while body > 0:
-        if int(model.body_jntnum[body]) > 0:
-            return False
-        body = int(model.body_parentid[body])
-    return True
 
 
 def _plane_extent(bounds: tuple[float, float, float, float] | None) -> tuple[float, float]:

@@ -32,6 +32,7 @@ from mjnav.viz.layers import (
     pose_msg_matrix,
     rgb_hex,
     scan_points,
+    transform_msg_matrix,
 )
 from mjnav.viz.model import VisualGeom, VisualModel
 from mjnav.viz.scene import Scene
@@ -114,7 +115,16 @@ class NavView:
     """
 
     #: Topics :meth:`handle` understands, besides the pose topic.
-    TOPICS: ClassVar[tuple[str, ...]] = ("scan", "map", "costmap", "plan", "path", "goal", "goal_status")
+    TOPICS: ClassVar[tuple[str, ...]] = (
+        "scan",
+        "map",
+        "costmap",
+        "plan",
+        "path",
+        "goal",
+        "goal_status",
+        "obstacles",
+    )
 
     def __init__(self, scene: Scene, *, scan_point_size_m: float = 0.06, pose_topic: str = "ground_truth") -> None:
         if pose_topic not in ("ground_truth", "odom"):
@@ -150,15 +160,20 @@ class NavView:
         self.scene.set_property("/Cameras/default/rotated/<object>", "position", [0.0, height, 0.25 * height])
 
     def draw_model(self, model: VisualModel) -> None:
-        """Draw the world's static and moving geoms and the robot (at its start pose until a pose arrives)."""
+        """Draw the world's static geoms, its moving bodies and the robot (at their start poses until poses
+        arrive)."""
         self.model = model
         s = self.scene
         s.delete(f"{ROOT}/world")
         s.delete(f"{ROOT}/moving")
         s.delete(f"{ROOT}/robot/body")
-        for prefix, geoms, opacity in (("world", model.world_geoms, 1.0), ("moving", model.moving_geoms, 0.4)):
-            for geom in geoms:
-                self._draw_geom(f"{ROOT}/{prefix}/{_safe(geom.name)}", geom, opacity)
+        for geom in model.world_geoms:
+            self._draw_geom(f"{ROOT}/world/{_safe(geom.name)}", geom, 1.0)
+        for body in model.moving_bodies:
+            path = f"{ROOT}/moving/{_safe(body.name)}"
+            for geom in body.geoms:
+                self._draw_geom(f"{path}/{_safe(geom.name)}", geom, 0.6)
+            s.set_transform(path, body.pose)
         for geom in model.robot_geoms:
             self._draw_geom(f"{ROOT}/robot/body/{_safe(geom.name)}", geom, 1.0)
         s.set_transform(f"{ROOT}/robot/laser", model.laser_pose)
@@ -177,6 +192,15 @@ class NavView:
         """Move the robot: ``transform`` is the (4, 4) pose of ``base_link`` in ``map``."""
         self.scene.set_transform(f"{ROOT}/robot", transform)
         self._count("robot")
+
+    def move_bodies(self, tf: Any) -> None:
+        """Move the moving bodies named in ``tf`` (tf2_msgs/TFMessage, transforms ``map`` → body name); transforms
+        of bodies the model does not have are ignored."""
+        known = {b.name for b in self.model.moving_bodies} if self.model is not None else set()
+        for t in tf.transforms:
+            if t.child_frame_id in known and t.header.frame_id == "map":
+                self.scene.set_transform(f"{ROOT}/moving/{_safe(t.child_frame_id)}", transform_msg_matrix(t.transform))
+                self._count("obstacles")
 
     def draw_scan(self, scan: Any) -> None:
         """Show a sensor_msgs/LaserScan's returns as points in the lidar frame (attached to the robot)."""
@@ -263,6 +287,8 @@ class NavView:
             self.draw_goal(msg)
         elif topic_name == "goal_status":
             self.set_goal_status(msg)
+        elif topic_name == "obstacles":
+            self.move_bodies(msg)
         else:
             return False
         return True

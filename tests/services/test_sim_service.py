@@ -99,3 +99,39 @@ def test_sim_publishes_sensors_and_obeys_cmd_vel_with_a_watchdog(
 
     stamps = [ros.seconds(c) for c in (first.clock, clock.latest().clock)]
     assert stamps[1] > stamps[0]
+
+
+@pytest.mark.parametrize("world", ["warehouse", "empty"])
+def test_obstacles_carry_the_true_poses_of_the_moving_bodies(world: str, peer: Callable[..., Bus]) -> None:
+    from mjnav.services.sim import SimBridge, SimConfig
+    from mjnav.sim import LidarConfig, Simulator
+
+    sim = Simulator(world, seed=0, lidar=LidarConfig(num_beams=36))
+    sim_bus = peer()
+    bridge = SimBridge(sim, sim_bus, SimConfig(world=world))
+    me = peer()
+    obstacles, clock = me.subscribe("obstacles"), me.subscribe("clock")
+    for name in ("obstacles", "clock"):  # our subscriptions have reached the bridge's session
+        assert sim_bus.publisher(name).wait_for_subscribers(10.0)
+    bridge.advance(0.0)
+    if world == "empty":
+        bridge.advance(0.5)
+        assert clock.wait(10.0, lambda c: ros.seconds(c.clock) >= 0.5) is not None
+        assert obstacles.latest() is None, "a world without moving bodies published obstacles"
+        return
+
+    first = obstacles.wait(10.0)
+    assert first is not None
+    assert sorted(t.child_frame_id for t in first.transforms) == ["cart", "picker"]
+    assert {t.header.frame_id for t in first.transforms} == {"map"}
+    truth = {b.name: b for b in sim.moving_body_poses()}
+    for t in first.transforms:
+        tr = t.transform.translation
+        assert [tr.x, tr.y, tr.z] == pytest.approx(truth[t.child_frame_id].position_m.tolist())
+    bridge.advance(2.0)  # the carts oscillate on springs: two seconds later they are elsewhere
+    later = obstacles.wait(10.0, lambda m: ros.seconds(m.transforms[0].header.stamp) >= 2.0)
+    assert later is not None
+    moved = {t.child_frame_id: t.transform.translation.y for t in later.transforms}
+    start = {t.child_frame_id: t.transform.translation.y for t in first.transforms}
+    assert all(abs(moved[n] - start[n]) > 0.05 for n in moved), (start, moved)
+    assert moved == pytest.approx({b.name: float(b.position_m[1]) for b in sim.moving_body_poses()}, abs=0.05)

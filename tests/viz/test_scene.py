@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import umsgpack
 
 from mjnav.geometry import Pose2D
 from mjnav.msgs import from_dict, ros
@@ -25,7 +26,7 @@ def test_rooms_model_splits_world_and_robot_with_mujoco_colours() -> None:
     model = load_visual_model("rooms")
     world, robot = _by_name(model.world_geoms), _by_name(model.robot_geoms)
     assert {"floor", "wall_north", "sofa", "pillar"} <= set(world)
-    assert not model.moving_geoms
+    assert not model.moving_bodies
     # Invisible collision spheres (alpha 0) are left out; visuals stay.
     assert "left_wheel" not in robot and "left_wheel_visual" in robot and "chassis" in robot
     # Robot geoms sit in base_link: the chassis centre is 0.1 m above the base, the lidar 0.2 m.
@@ -40,9 +41,40 @@ def test_rooms_model_splits_world_and_robot_with_mujoco_colours() -> None:
     assert world["wall_north"].pose[1, 3] == pytest.approx(5.0)
 
 
-def test_moving_bodies_are_kept_apart() -> None:
+def test_moving_bodies_are_kept_apart_and_follow_the_obstacles_topic() -> None:
+    import mujoco
+
+    from mjnav.sim.model import load_world
+
     model = load_visual_model("warehouse")
-    assert {g.name for g in model.moving_geoms} == {"cart", "picker"}
+    bodies = {b.name: b for b in model.moving_bodies}
+    assert set(bodies) == {"cart", "picker"}
+    assert {g.name for b in bodies.values() for g in b.geoms} == {"cart", "picker"}
+    assert not {"cart", "picker"} & {g.name for g in model.world_geoms}
+    # Body pose ∘ geom pose relative to the body = the geom where MuJoCo puts it.
+    loaded = load_world("warehouse")
+    data = mujoco.MjData(loaded.model)
+    mujoco.mj_kinematics(loaded.model, data)
+    cart_geom = mujoco.mj_name2id(loaded.model, mujoco.mjtObj.mjOBJ_GEOM, "cart")
+    np.testing.assert_allclose((bodies["cart"].pose @ bodies["cart"].geoms[0].pose)[:3, 3], data.geom_xpos[cart_geom])
+
+    scene = Scene()
+    view = NavView(scene)
+    view.draw_model(model)
+    assert scene.has_object(f"{ROOT}/moving/cart/cart")
+    n = len(scene.commands())
+    moved = ros.tf_message(
+        ros.transform_stamped_3d(1.0, "map", "cart", (0.0, -1.0, 0.45), (0.0, 0.0, 0.0, 1.0)),
+        ros.transform_stamped_3d(1.0, "map", "forklift", (9.0, 9.0, 0.0), (0.0, 0.0, 0.0, 1.0)),  # not in this world
+    )
+    assert view.handle("obstacles", moved)
+    assert view.drawn["obstacles"] == 1  # the cart moved; the unknown body was ignored
+    assert len(scene.commands()) == n  # the cart's transform was replaced, nothing added
+    sent: list[bytes] = []
+    scene.replay(lambda kind, path, packed: sent.append(packed) if path == f"{ROOT}/moving/cart" else None)
+    (command,) = [umsgpack.unpackb(p) for p in sent if umsgpack.unpackb(p)["type"] == "set_transform"]
+    matrix = np.array(command["matrix"], dtype=float).reshape(4, 4).T  # meshcat matrices are column-major
+    np.testing.assert_allclose(matrix[:3, 3], [0.0, -1.0, 0.45])
 
 
 def test_occupancy_image_rows_run_north_and_unknown_is_transparent() -> None:
