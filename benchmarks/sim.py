@@ -127,7 +127,7 @@ def bench_rtf(world: str, seconds: float, repeats: int) -> dict[str, tuple[float
                     raise RuntimeError("the listener process never subscribed")
                 r = SimRunner(sim, rtf=None)
                 r.add_hook(lambda s: s.set_command(v, w), 0.1)
-                r.add_hook(lambda s: bridge.publish_due(s.time_s), bridge.tick_s)
+                bridge.attach(r)
                 rtf = r.run(seconds).real_time_factor
             out, _ = listener.communicate("", timeout=30)
             if int(out.strip() or 0) == 0:

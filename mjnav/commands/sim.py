@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
                 world=args.world, seed=args.seed, lidar_beams=args.lidar_beams, lidar_rate_hz=args.lidar_rate
             )
             bridge = SimBridge(sim, bus, config)
-            runner.add_hook(lambda s: bridge.publish_due(s.time_s), bridge.tick_s)
+            bridge.attach(runner)
         recorder = None
         if args.record:
             recorder = Recorder(

@@ -17,12 +17,15 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
+
+if TYPE_CHECKING:
+    from mjnav.sim import SimRunner
 
 #: ``sim_status`` messages per sim second.
 SIM_STATUS_RATE_HZ = 10.0
@@ -126,23 +129,15 @@ class SimBridge:
         self._scan_time_s = 1.0 / config.lidar_rate_hz
         self.commands_applied = 0
 
-    def advance(self, target_s: float, wall_deadline: float | None = None) -> None:
-        """Step the simulation up to sim time ``target_s``, publishing everything that falls due on the way.
-
-        Stops early when ``time.perf_counter()`` passes ``wall_deadline`` (used when running as fast as possible).
-        """
-        sim = self.sim
-        while True:
-            t = sim.time_s
-            self.publish_due(t)
-            if t >= target_s - 1e-9 or (wall_deadline is not None and time.perf_counter() >= wall_deadline):
-                return
-            sim.step_until(min(target_s, self._clock.next_t, self._odom.next_t, self._imu.next_t))
-
     @property
     def tick_s(self) -> float:
-        """Sim-time period at which :meth:`publish_due` must be called (the clock period)."""
-        return self._clock.period
+        """Sim-time period at which :meth:`publish_due` must be called: the shortest publishing period (messages
+        of slower schedules go out at the first call at or after their due time)."""
+        return min(e.period for e in (self._clock, self._odom, self._imu, self._obstacles_due))
+
+    def attach(self, runner: SimRunner) -> None:
+        """Make :meth:`publish_due` a hook of ``runner`` (every :attr:`tick_s`)."""
+        runner.add_hook(lambda sim: self.publish_due(sim.time_s), self.tick_s)
 
     def publish_due(self, t: float) -> None:
         """Apply a new ``cmd_vel`` and publish every message due at sim time ``t`` (call every :attr:`tick_s`)."""
@@ -214,7 +209,7 @@ class SimService(Service[SimConfig]):
     uses_sim_time = False
 
     def configure(self) -> None:
-        from mjnav.sim import LidarConfig, Recorder, Simulator
+        from mjnav.sim import LidarConfig, Recorder, SimRunner, Simulator
 
         cfg = self.config
         lidar = LidarConfig(
@@ -226,12 +221,14 @@ class SimService(Service[SimConfig]):
         )
         self.sim = Simulator(cfg.world, seed=cfg.seed, lidar=lidar, watchdog_timeout_s=cfg.watchdog_timeout_s)
         self.bridge = SimBridge(self.sim, self.bus, cfg)
+        self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
+        self.bridge.attach(self.runner)
         self.recorder: Any = None
         if cfg.record_path:
             self.recorder = Recorder(
                 self.sim.model, self.sim.data, Path(cfg.record_path), fps=cfg.record_fps, camera=cfg.record_camera
             )
-            self._frames = _Every(cfg.record_fps)
+            self.recorder.add_to(self.runner)
         start: Pose2D = self.sim.start_pose
         self.log.info(
             "world %s, start (%.2f, %.2f, %.2f), rtf %s",
@@ -251,9 +248,9 @@ class SimService(Service[SimConfig]):
         if cfg.rtf > 0:
             target = cfg.rtf * (time.monotonic() - self._wall0)
             deadline = time.perf_counter() + 2.0 / cfg.rate_hz  # never block the loop for long
-            self._advance(target, deadline)
+            self.runner.advance(target, deadline)
         else:
-            self._advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
+            self.runner.advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
         wall = time.monotonic()
         if wall - self._last_report >= 10.0:
             self._last_report = wall
@@ -263,15 +260,6 @@ class SimService(Service[SimConfig]):
                 self.sim.time_s / max(wall - self._wall0, 1e-9),
                 self.sim.collisions,
             )
-
-    def _advance(self, target_s: float, deadline: float) -> None:
-        if self.recorder is None:
-            self.bridge.advance(target_s, deadline)
-            return
-        while self.sim.time_s < target_s - 1e-9 and time.perf_counter() < deadline:
-            if self._frames.due(self.sim.time_s):
-                self.recorder.capture()
-            self.bridge.advance(min(target_s, self._frames.next_t), deadline)
 
     def deactivate(self) -> None:
         self.sim.set_command(0.0, 0.0)

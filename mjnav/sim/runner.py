@@ -1,10 +1,11 @@
 """Run a :class:`~mjnav.sim.Simulator` against wall time, with periodic hooks.
 
-:class:`SimRunner` is the loop behind ``mjnav sim``. It advances the simulator in whole physics steps
-and calls *hooks* — plain callables taking the simulator — on their own sim-time schedules. The bus-backed
-sim service plugs its publishers/subscribers in as hooks (e.g. drain ``cmd_vel`` and publish ``clock`` every
-step or every few ms, publish ``scan`` when :meth:`~mjnav.sim.Simulator.pop_scan` returns one); the recorder
-is a hook at its frame rate.
+:class:`SimRunner` is the one stepping loop of the project: behind ``mjnav sim``, ``mjnav record`` and the sim
+service. It advances the simulator in whole physics steps and calls *hooks* — plain callables taking the
+simulator — on their own sim-time schedules. The bus bridge is a hook (apply the newest ``cmd_vel``, publish
+whatever falls due), and so is the recorder at its frame rate. :meth:`SimRunner.run` is a blocking, paced run
+for a duration; :meth:`SimRunner.advance` steps up to a sim time within a wall-time budget, for a caller that
+owns the pacing (the sim service, stepping in its own rate loop).
 
 Pacing: with ``rtf`` = a number, the loop sleeps so that sim time advances ``rtf`` times as fast as wall time
 (1.0 = real time), checked at every hook call and at least every ``pace_period_s`` of sim time; when the loop
@@ -14,6 +15,7 @@ falls behind it does not sleep and does not try to catch up. ``rtf=None`` runs a
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -101,6 +103,34 @@ class SimRunner:
         k = self.sim.step_count
         self._hooks.append(_Scheduled(hook, period_steps, k, 0, k))
 
+    def _call_due(self, end: int) -> int:
+        """Call the hooks due at the current step; returns the step of the next due hook (at most ``end``)."""
+        sim = self.sim
+        k = sim.step_count
+        nxt = end
+        for h in self._hooks:
+            if h.next_k <= k:
+                h.hook(sim)
+                h.count += 1
+                h.next_k = max(k + 1, h.origin + round(h.count * h.period_steps))
+            nxt = min(nxt, h.next_k)
+        return nxt
+
+    def advance(self, target_s: float, wall_deadline: float | None = None) -> None:
+        """Step up to sim time ``target_s`` (rounded to a whole step; ``inf``: until the deadline), calling every
+        hook that falls due on the way, including at the time reached. No pacing: the caller paces.
+
+        Hook schedules continue across calls (they started when the hook was added). Stops early when
+        ``time.perf_counter()`` passes ``wall_deadline``.
+        """
+        sim = self.sim
+        end = sys.maxsize if math.isinf(target_s) else round(target_s / sim.timestep_s)
+        while True:
+            nxt = self._call_due(end)
+            if sim.step_count >= end or (wall_deadline is not None and time.perf_counter() >= wall_deadline):
+                return
+            sim.step(nxt - sim.step_count)
+
     def run(self, duration_s: float, *, should_stop: Callable[[], bool] | None = None) -> RunStats:
         """Advance ``duration_s`` of sim time (rounded to whole steps), pacing and calling hooks.
 
@@ -124,13 +154,7 @@ class SimRunner:
         wall0 = time.perf_counter()
         while sim.step_count < end:
             k = sim.step_count
-            nxt = end
-            for h in self._hooks:
-                if h.next_k <= k:
-                    h.hook(sim)
-                    h.count += 1
-                    h.next_k = max(k + 1, h.origin + round(h.count * h.period_steps))
-                nxt = min(nxt, h.next_k)
+            nxt = self._call_due(end)
             if should_stop is not None and should_stop():
                 stopped = True
                 break

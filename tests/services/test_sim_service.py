@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+import re
 import signal
 import subprocess
 import sys
 import threading
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,23 +106,24 @@ def test_sim_publishes_sensors_and_obeys_cmd_vel_with_a_watchdog(
 @pytest.mark.parametrize("world", ["warehouse", "empty"])
 def test_obstacles_carry_the_true_poses_of_the_moving_bodies(world: str, peer: Callable[..., Bus]) -> None:
     from mjnav.services.sim import SimBridge, SimConfig
-    from mjnav.sim import LidarConfig, Simulator
+    from mjnav.sim import LidarConfig, SimRunner, Simulator
 
     sim = Simulator(world, seed=0, lidar=LidarConfig(num_beams=36))
     sim_bus = peer()
-    bridge = SimBridge(sim, sim_bus, SimConfig(world=world))
+    runner = SimRunner(sim, rtf=None)
+    SimBridge(sim, sim_bus, SimConfig(world=world)).attach(runner)
     me = peer()
     obstacles, clock = me.subscribe("obstacles"), me.subscribe("clock")
     for name in ("obstacles", "clock"):  # our subscriptions have reached the bridge's session
         assert sim_bus.publisher(name).wait_for_subscribers(10.0)
-    bridge.advance(0.0)
+    runner.advance(0.0)
     if world == "empty":
-        bridge.advance(0.5)
+        runner.advance(0.5)
         assert clock.wait(10.0, lambda c: ros.seconds(c.clock) >= 0.5) is not None
         assert obstacles.latest() is None, "a world without moving bodies published obstacles"
         return
 
-    first = obstacles.wait(10.0)
+    first = obstacles.wait(10.0, lambda m: True)  # the t = 0 message may already be here
     assert first is not None
     assert sorted(t.child_frame_id for t in first.transforms) == ["cart", "picker"]
     assert {t.header.frame_id for t in first.transforms} == {"map"}
@@ -128,10 +131,46 @@ def test_obstacles_carry_the_true_poses_of_the_moving_bodies(world: str, peer: C
     for t in first.transforms:
         tr = t.transform.translation
         assert [tr.x, tr.y, tr.z] == pytest.approx(truth[t.child_frame_id].position_m.tolist())
-    bridge.advance(2.0)  # the carts oscillate on springs: two seconds later they are elsewhere
+    runner.advance(2.0)  # the carts oscillate on springs: two seconds later they are elsewhere
     later = obstacles.wait(10.0, lambda m: ros.seconds(m.transforms[0].header.stamp) >= 2.0)
     assert later is not None
     moved = {t.child_frame_id: t.transform.translation.y for t in later.transforms}
     start = {t.child_frame_id: t.transform.translation.y for t in first.transforms}
     assert all(abs(moved[n] - start[n]) > 0.05 for n in moved), (start, moved)
     assert moved == pytest.approx({b.name: float(b.position_m[1]) for b in sim.moving_body_poses()}, abs=0.05)
+
+
+def test_the_sim_service_records_while_it_runs(router_endpoint: str, peer: Callable[..., Bus], tmp_path: Path) -> None:
+    import imageio.v3 as iio
+
+    from mjnav.sim import RenderBackendUnavailableError, select_gl_backend
+
+    try:
+        select_gl_backend()
+    except RenderBackendUnavailableError as exc:
+        pytest.skip(f"no offscreen OpenGL here: {exc}")
+    out = tmp_path / "sim.mp4"
+    sets = ["world=warehouse", "rtf=0", f"record_path={str(out)!r}", "record_fps=10.0"]
+    cmd = [sys.executable, "-m", "mjnav", "run", "sim", "--connect", router_endpoint]
+    proc = subprocess.Popen(
+        cmd + [a for s in sets for a in ("--set", s)],
+        cwd=REPO,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+    try:
+        clock = peer().subscribe("clock")
+        assert clock.wait(90.0, lambda c: ros.seconds(c.clock) >= 2.0) is not None, "the sim never reached 2 s"
+    finally:
+        proc.send_signal(signal.SIGINT)
+        log, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0, log
+    wrote = re.search(r"wrote (\d+) frames", log)
+    stopped = re.search(r"stopped at sim time ([0-9.]+) s", log)
+    assert wrote and stopped, log
+    frames = iio.imread(out, plugin="FFMPEG")
+    assert frames.shape[0] == int(wrote.group(1))
+    # One frame every 0.1 s of sim time, the first at 0 (±1 for the step the signal arrived in).
+    assert abs(frames.shape[0] - (math.floor(float(stopped.group(1)) * 10.0) + 1)) <= 1
+    assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean() > 0.05  # the carts move

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+import time
+
 import pytest
 
 from mjnav.sim import InvalidCommandError, SimRunner, Simulator
@@ -23,6 +26,20 @@ def test_hooks_run_on_schedule_and_the_end_time_is_exclusive() -> None:
     assert all(abs(t - k / 30.0) <= 0.001 + 1e-12 for k, t in enumerate(frames))  # rounded to 2 ms steps
     assert fast == list(range(1500))
     assert stats.wall_s > 0.0 and stats.real_time_factor > 0.0
+
+
+def test_advance_in_slices_calls_each_hook_once_per_due_time_including_the_time_reached() -> None:
+    sim = Simulator("empty", seed=0, lidar=None)
+    runner = SimRunner(sim, rtf=None)
+    ticks: list[int] = []
+    runner.add_hook(lambda s: ticks.append(s.step_count), 0.01)  # every 5 steps
+    for target in (0.0, 0.013, 0.013, 0.05, 0.1):  # uneven slices, one repeated
+        runner.advance(target)
+        assert sim.step_count == round(target / 0.002)
+    assert ticks == list(range(0, 51, 5))  # 0 … 0.1 s, the last at the time reached, none twice
+    start = sim.step_count
+    runner.advance(math.inf, wall_deadline=time.perf_counter())  # a spent budget: due hooks only, no stepping
+    assert sim.step_count == start and ticks[-1] == 50
 
 
 def test_a_controller_hook_keeps_the_watchdog_fed_and_should_stop_ends_the_run() -> None:
