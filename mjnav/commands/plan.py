@@ -20,6 +20,8 @@ if TYPE_CHECKING:
     import numpy as np
     from numpy.typing import NDArray
 
+    from mjnav.mapping.frame import GridFrame
+
 ALGORITHMS = ("astar", "jps", "dijkstra", "greedy", "bfs", "dfs", "potential_field")
 HEURISTICS = ("octile", "euclidean", "chebyshev", "manhattan")
 
@@ -120,12 +122,12 @@ def run(args: argparse.Namespace) -> int:
             occupied = np.asarray(mai.blocked)
             frame = _Frame("moving-ai", occupied.shape)
         elif suffix in (".yaml", ".yml"):
-            from mjnav.mapping import read_ros_map
+            from mjnav.mapping import GridFrame, read_ros_map
 
             ros = read_ros_map(path)
             occupied = np.asarray(ros.occupied_mask(unknown_is_occupied=args.unknown_occupied), dtype=bool)
             ox, oy, yaw = (float(v) for v in ros.origin_m)
-            frame = _Frame("ros", occupied.shape, float(ros.resolution_m), (ox, oy, yaw))
+            frame = _Frame("ros", occupied.shape, GridFrame(float(ros.resolution_m), (ox, oy), occupied.shape, yaw))
         else:
             return _fail(2, f"{path}: unknown map type {suffix!r}; use a Moving AI .map or a ROS .yaml")
     except (OSError, ValueError) as exc:
@@ -210,19 +212,14 @@ def _fmt(pt: list[float] | list[int]) -> str:
 
 
 class _Frame:
-    """Conversion between user coordinates X,Y and grid cells (row, col) for one map."""
+    """Conversion between user coordinates X,Y and grid cells (row, col) for one map: integer column,row on a
+    Moving AI map, metres in the map frame (through the map's :class:`~mjnav.mapping.GridFrame`) on a ROS map."""
 
-    def __init__(
-        self,
-        kind: str,
-        shape: tuple[int, ...],
-        resolution_m: float = 1.0,
-        origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    ) -> None:
+    def __init__(self, kind: str, shape: tuple[int, ...], grid: GridFrame | None = None) -> None:
         self.kind = kind
         self.shape = (int(shape[0]), int(shape[1]))
-        self.resolution_m = resolution_m
-        self.origin = origin
+        self.grid = grid
+        self.resolution_m = grid.resolution_m if grid is not None else 1.0
 
     @property
     def coordinates(self) -> str:
@@ -235,21 +232,12 @@ class _Frame:
             if x != int(x) or y != int(y):
                 raise ValueError(f"{what} must be integer column,row on a Moving AI map; got {x:g},{y:g}")
             return int(y), int(x)
-        ox, oy, yaw = self.origin
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = x - ox, y - oy
-        lx, ly = c * dx + s * dy, -s * dx + c * dy
-        return math.floor(ly / self.resolution_m), math.floor(lx / self.resolution_m)
+        assert self.grid is not None
+        return self.grid.world_to_cell(x, y)
 
     def to_points(self, cells: NDArray[np.int64]) -> list[list[Any]]:
         """User coordinates of (N, 2) (row, col) cells: [x, y] ints (Moving AI) or metres (ROS centres)."""
         if self.kind == "moving-ai":
             return [[int(col), int(row)] for row, col in cells]
-        ox, oy, yaw = self.origin
-        c, s = math.cos(yaw), math.sin(yaw)
-        out = []
-        for row, col in cells:
-            lx = (float(col) + 0.5) * self.resolution_m
-            ly = (float(row) + 0.5) * self.resolution_m
-            out.append([ox + c * lx - s * ly, oy + s * lx + c * ly])
-        return out
+        assert self.grid is not None
+        return [[float(x), float(y)] for x, y in self.grid.cells_to_world(cells)]

@@ -1,7 +1,9 @@
 """Where a grid sits in the world: resolution, origin and size, and the cell ↔ world conversions.
 
 Same convention as :class:`~mjnav.mapping.OccupancyGrid` and ``nav_msgs/OccupancyGrid``: cell (row, col) covers
-x ∈ [ox + col·res, ox + (col+1)·res), y ∈ [oy + row·res, oy + (row+1)·res); row 0 is the lowest y.
+x ∈ [ox + col·res, ox + (col+1)·res), y ∈ [oy + row·res, oy + (row+1)·res); row 0 is the lowest y. A ROS map may
+also rotate the grid about its origin by ``yaw_rad`` (the origin pose's yaw, map_server's third origin value): the
+same intervals then hold in the grid's own axes, (lx, ly) = R(−yaw)·((x, y) − (ox, oy)).
 """
 
 from __future__ import annotations
@@ -23,11 +25,13 @@ class GridFrame:
         resolution_m: cell size, metres.
         origin_m: (x, y) of the outer corner of cell (0, 0), metres.
         shape: (H, W) cells.
+        yaw_rad: rotation of the grid's axes about the origin, radians (0 for every grid mjnav makes).
     """
 
     resolution_m: float
     origin_m: tuple[float, float]
     shape: tuple[int, int]
+    yaw_rad: float = 0.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.resolution_m) and self.resolution_m > 0):
@@ -36,11 +40,17 @@ class GridFrame:
             raise InvalidParameterError(f"origin_m must be finite, got {self.origin_m}")
         if len(self.shape) != 2 or min(self.shape) < 1:
             raise InvalidParameterError(f"shape must be (H, W) with H, W >= 1, got {self.shape}")
+        if not math.isfinite(self.yaw_rad):
+            raise InvalidParameterError(f"yaw_rad must be finite, got {self.yaw_rad}")
 
     def world_to_cell(self, x_m: float, y_m: float) -> tuple[int, int]:
         """(row, col) of the cell holding world point (x, y); may lie outside the grid (see :meth:`contains`)."""
         res = self.resolution_m
-        return math.floor((y_m - self.origin_m[1]) / res), math.floor((x_m - self.origin_m[0]) / res)
+        dx, dy = x_m - self.origin_m[0], y_m - self.origin_m[1]
+        if self.yaw_rad:
+            c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+            dx, dy = c * dx + s * dy, -s * dx + c * dy
+        return math.floor(dy / res), math.floor(dx / res)
 
     def contains(self, row: int, col: int) -> bool:
         """Whether (row, col) is a cell of the grid."""
@@ -50,12 +60,18 @@ class GridFrame:
         """(N, 2) cell centres (x, y) in metres of (N, 2) (row, col) cells."""
         c = np.asarray(cells, dtype=np.float64).reshape(-1, 2)
         res = self.resolution_m
-        return np.column_stack((self.origin_m[0] + (c[:, 1] + 0.5) * res, self.origin_m[1] + (c[:, 0] + 0.5) * res))
+        lx, ly = (c[:, 1] + 0.5) * res, (c[:, 0] + 0.5) * res
+        if self.yaw_rad:
+            co, si = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+            lx, ly = co * lx - si * ly, si * lx + co * ly
+        return np.column_stack((self.origin_m[0] + lx, self.origin_m[1] + ly))
 
     def world_to_cells(self, points: ArrayLike) -> NDArray[np.int64]:
         """(N, 2) (row, col) cells of (N, 2) world points (x, y); may lie outside the grid."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         res = self.resolution_m
-        rows = np.floor((p[:, 1] - self.origin_m[1]) / res)
-        cols = np.floor((p[:, 0] - self.origin_m[0]) / res)
-        return np.column_stack((rows, cols)).astype(np.int64)
+        dx, dy = p[:, 0] - self.origin_m[0], p[:, 1] - self.origin_m[1]
+        if self.yaw_rad:
+            c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+            dx, dy = c * dx + s * dy, -s * dx + c * dy
+        return np.column_stack((np.floor(dy / res), np.floor(dx / res))).astype(np.int64)

@@ -250,11 +250,11 @@ def occupancy_grid(t_s: float, frame_id: str, cells: Any, resolution_m: float, o
     return _OccupancyGrid(header=header(t_s, frame_id), info=info, data=grid.reshape(-1))
 
 
-def grid_cells(msg: Any) -> tuple[Any, float, tuple[float, float]]:
-    """The (H, W) int8 cells, resolution (m) and origin (x, y) of a nav_msgs/OccupancyGrid (yaw ignored)."""
+def grid_cells(msg: Any) -> tuple[Any, float, Pose2D]:
+    """The (H, W) int8 cells, resolution (m) and origin pose (x, y, yaw) of a nav_msgs/OccupancyGrid."""
     info = msg.info
     cells = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
-    return cells, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y))
+    return cells, float(info.resolution), pose2d(info.origin)
 
 
 def path_msg(t_s: float, frame_id: str, points: Any) -> Any:

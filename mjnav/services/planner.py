@@ -213,7 +213,7 @@ class PlannerService(Service[PlannerConfig]):
         if goal.cells is not None and not fresh:
             return
         cells, res, origin = ros.grid_cells(costmap_msg)
-        frame = GridFrame(res, origin, cells.shape)
+        frame = GridFrame(res, (origin.x, origin.y), cells.shape, origin.theta)
         occupied, cost = planning_grid(
             cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost
         )

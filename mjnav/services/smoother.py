@@ -96,7 +96,7 @@ class SmootherService(Service[SmootherConfig]):
         if msg is None:
             return np.zeros(len(points))
         cells, res, origin = ros.grid_cells(msg)
-        frame = GridFrame(res, origin, cells.shape)
+        frame = GridFrame(res, (origin.x, origin.y), cells.shape, origin.theta)
         idx = frame.world_to_cells(points)
         inside = (idx[:, 0] >= 0) & (idx[:, 0] < cells.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < cells.shape[1])
         clear = np.zeros(len(points))

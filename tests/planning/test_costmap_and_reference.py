@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mjnav.mapping import GridFrame
+from mjnav.mapping.errors import InvalidParameterError
 from mjnav.planning import InvalidInput, plan_grid
 from mjnav.planning.costmap import clear_disc, planning_grid
 from mjnav.planning.reference import shorten_path, shortest_path_length_m
@@ -48,3 +49,16 @@ def test_reference_length_is_the_straight_line_in_open_space() -> None:
     walls[20, :45] = True  # a wall with a gap on the right: the path must go round it
     around = shortest_path_length_m(walls, frame, (0.55, 0.55), (0.55, 4.55), 0.2)
     assert around > 2 * math.hypot(4.2, 2.0) - 0.2
+
+
+def test_a_rotated_grid_frame_round_trips_and_matches_hand_worked_cells() -> None:
+    # Yaw 90°: the grid's +col axis points along world +y, its +row axis along world −x.
+    frame = GridFrame(0.5, (1.0, 2.0), (4, 6), yaw_rad=math.pi / 2)
+    assert frame.world_to_cell(1.1, 2.7) == (-1, 1)  # east of the origin is −row: outside, below row 0
+    assert frame.world_to_cell(0.9, 2.7) == (0, 1)
+    centres = frame.cells_to_world([[0, 0], [3, 5]])
+    np.testing.assert_allclose(centres, [[0.75, 2.25], [-0.75, 4.75]])
+    np.testing.assert_array_equal(frame.world_to_cells(centres), [[0, 0], [3, 5]])
+    assert [frame.world_to_cell(x, y) for x, y in centres] == [(0, 0), (3, 5)]
+    with pytest.raises(InvalidParameterError):
+        GridFrame(0.5, (0.0, 0.0), (4, 6), yaw_rad=math.nan)
