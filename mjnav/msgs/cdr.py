@@ -246,38 +246,39 @@ class _DecodeGen(_Emitter):
         self.known = min(size, 4)
         return var
 
-    def strings(self, length: int | None) -> str:
+    def loop(self, length: int | None, minimum: int, body: list[str]) -> str:
+        """A list read element by element: ``length`` of them (fixed array) or a sequence count (elements of at
+        least ``minimum`` bytes); ``body`` reads one element into ``o`` and leaves ``pos`` after it."""
         if length is None:
-            n = self.count(5)
+            n = self.count(minimum)
         else:
             n = str(length)
             self.sync()
         var = self.name("v")
         self.emit(f"{var} = []")
         self.emit(f"for _ in range({n}):")
-        self.emit("    pos = (pos + 3) & -4")
-        self.emit("    k = _u32(d, pos)[0]")
-        self.emit("    if k < 1 or pos + 4 + k > len(d) or d[pos + 3 + k]:")
-        self.emit("        raise _Fallback")
-        self.emit(f"    {var}.append(str(d[pos + 4 : pos + 3 + k], 'utf-8'))")
-        self.emit("    pos += 4 + k")
+        for line in [*body, f"{var}.append(o)"]:
+            self.emit("    " + line)
         self.known = 1
         return var
 
+    def strings(self, length: int | None) -> str:
+        return self.loop(
+            length,
+            5,
+            [
+                "pos = (pos + 3) & -4",
+                "k = _u32(d, pos)[0]",
+                "if k < 1 or pos + 4 + k > len(d) or d[pos + 3 + k]:",
+                "    raise _Fallback",
+                "o = str(d[pos + 4 : pos + 3 + k], 'utf-8')",
+                "pos += 4 + k",
+            ],
+        )
+
     def messages(self, typename: str, length: int | None) -> str:
         func = self.element_function(typename, "dec", lambda key: _build_decoder(self.store, self.ns, typename, key))
-        if length is None:
-            n = self.count(1)
-        else:
-            n = str(length)
-            self.sync()
-        var = self.name("v")
-        self.emit(f"{var} = []")
-        self.emit(f"for _ in range({n}):")
-        self.emit(f"    o, pos = {func}(d, pos)")
-        self.emit(f"    {var}.append(o)")
-        self.known = 1
-        return var
+        return self.loop(length, 1, [f"o, pos = {func}(d, pos)"])
 
     def message(self, typename: str) -> str:
         """Inline the fields of ``typename``; returns the expression constructing it."""
