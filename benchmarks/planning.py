@@ -8,8 +8,8 @@ Solvers (all timed per call, best of ``--repeat`` calls per query, the same quer
 
 * ``mjnav jps`` / ``mjnav astar``: :func:`mjnav.planning.plan_grid` with the default semantics (√2 diagonals, no
   corner cutting). The time is the whole call: argument checks, copying the map into the padded search grid
-  (and its transpose for jps), the search and the path extraction. Numba compilation is excluded by a warm-up
-  query per map (the kernels are also cached on disk).
+  (for jps also packing it into bit rows and bit columns), the search and the path extraction. Numba compilation
+  is excluded by a warm-up query per map (the kernels are also cached on disk).
 * ``pyastar2d`` (C++ A*, https://github.com/hjweide/pyastar2d), called as a user would:
   ``pyastar2d.astar_path(weights, start, goal, allow_diagonal=...)`` with ``weights`` a float32 grid of 1.0
   (free) and +inf (blocked) built once per map outside the timing. Its semantics differ from ours: every move,

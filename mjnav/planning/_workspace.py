@@ -8,7 +8,8 @@ a *tag* naming the search that wrote them (see :mod:`mjnav.planning._kernels`), 
 read as unvisited and starting a search is O(1): ``base += TAG_SPAN``.
 
 Memory per node: 16 (record) + 8 (BFS queue) + 1 (map copy) bytes, plus the heap (24 bytes per entry,
-initially n / 4 entries, doubled on overflow).
+initially n / 4 entries, doubled on overflow) and, once jump point search has run, its two bit grids (about
+1/4 byte per node).
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ class Workspace:
         nodes: node records (:data:`~mjnav.planning._kernels.NODE_DTYPE`).
         queue: int64 FIFO storage (BFS), one slot per node.
         blocked: uint8 padded grid buffer.
-        bits: uint64 bit-row buffer of the padded grid (jump point search), grown on demand.
+        bits, tbits: uint64 buffers for the bit rows and bit columns of jump point search, grown on demand by
+            :meth:`bit_grids`.
         keys, subs, items: binary-heap storage (``items`` doubles as the DFS stack); a kernel that fills it
             reports an overflow and the caller retries after :meth:`grow_heap`.
         base: the tag base of the current search.
@@ -46,6 +48,7 @@ class Workspace:
         self.queue: NDArray[np.int64] = np.empty(capacity, np.int64)
         self.blocked: NDArray[np.uint8] = np.empty(capacity, np.uint8)
         self.bits: NDArray[np.uint64] = np.empty(0, np.uint64)
+        self.tbits: NDArray[np.uint64] = np.empty(0, np.uint64)
         heap = max(1024, capacity // 4)
         self.keys: NDArray[np.float64] = np.empty(heap, np.float64)
         self.subs: NDArray[np.float64] = np.empty(heap, np.float64)
@@ -59,6 +62,14 @@ class Workspace:
             self.nodes["tag"] = 0
             self.base = TAG_SPAN
         return self.base
+
+    def bit_grids(self, n_bits: int, n_tbits: int) -> tuple[NDArray[np.uint64], NDArray[np.uint64]]:
+        """The bit-row and bit-column buffers, grown to at least ``n_bits`` and ``n_tbits`` words."""
+        if self.bits.shape[0] < n_bits:
+            self.bits = np.empty(n_bits, np.uint64)
+        if self.tbits.shape[0] < n_tbits:
+            self.tbits = np.empty(n_tbits, np.uint64)
+        return self.bits, self.tbits
 
     def grow_heap(self) -> None:
         """Double the heap (and DFS stack) storage; its contents are discarded."""

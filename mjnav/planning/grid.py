@@ -33,7 +33,7 @@ from mjnav.planning.errors import (
     StartOutsideMap,
 )
 from mjnav.planning.heuristics import heuristic_code
-from mjnav.planning.jps import jump_point_search, pack_rows, trace_jump_path
+from mjnav.planning.jps import grid_layout, jump_point_search, prepare_grid, trace_jump_path
 
 if TYPE_CHECKING:
     from mjnav.planning.potential_field import PotentialFieldParams
@@ -263,6 +263,9 @@ def plan_grid(
     if s == t:
         return GridPlan(np.array([s], dtype=np.int64), 0.0, 0, str(algorithm))
 
+    if algorithm == "jps":
+        return _plan_jps(blocked_mask, s, t, alpha, beta, hcode)
+
     h, w = shape
     width = w + 2
     n_nodes = (h + 2) * width
@@ -274,22 +277,6 @@ def plan_grid(
     sn = (s[0] + 1) * width + s[1] + 1
     tn = (t[0] + 1) * width + t[1] + 1
     n_moves = connectivity
-
-    if algorithm == "jps":
-        bits, words = pack_rows(flat.reshape(h + 2, width), ws.bits)
-        ws.bits = bits if bits.shape[0] > ws.bits.shape[0] else ws.bits
-        while True:
-            g_goal, expanded, status = jump_point_search(
-                flat, bits, words, width, sn, tn, alpha, beta, hcode,
-                ws.nodes, ws.begin(), ws.keys, ws.subs, ws.items,
-            )  # fmt: skip
-            if status != kern.OVERFLOW:
-                break
-            ws.grow_heap()
-        if status != kern.FOUND:
-            raise NoPathFound(f"no path from {s} to {t} (jps expanded {expanded} jump points)")
-        cells = trace_jump_path(ws.nodes, width, sn, tn)
-        return GridPlan(cells, float(g_goal), int(expanded), "jps")
 
     if algorithm in ("bfs", "dfs"):
         while True:
@@ -327,6 +314,34 @@ def plan_grid(
         raise NoPathFound(f"no path from {s} to {t} ({algorithm} expanded {expanded} nodes)")
     cells = kern.trace_path(ws.nodes, width, sn, tn)
     return GridPlan(cells, float(g_goal), int(expanded), str(algorithm))
+
+
+def _plan_jps(
+    mask: NDArray[np.bool_], s: tuple[int, int], t: tuple[int, int], alpha: float, beta: float, hcode: int
+) -> GridPlan:
+    """Jump point search (:mod:`mjnav.planning.jps`) from ``s`` to ``t`` (distinct free cells of ``mask``)."""
+    h, w = mask.shape
+    stride, words, twords = grid_layout(h, w)
+    n_nodes = (h + 2) * stride
+    if n_nodes >= 2**31:
+        raise InvalidInput(f"map of {h}×{w} cells is too large (node ids are int32)")
+    ws = get_workspace(n_nodes)
+    flat = ws.blocked[:n_nodes]
+    bits, tbits = ws.bit_grids((h + 2) * words, stride * twords)
+    prepare_grid(np.ascontiguousarray(mask), flat.reshape(h + 2, stride), bits, tbits)
+    sn = (s[0] + 1) * stride + s[1] + 1
+    tn = (t[0] + 1) * stride + t[1] + 1
+    while True:
+        g_goal, expanded, status = jump_point_search(
+            flat, bits, words, tbits, twords, stride, sn, tn, alpha, beta, hcode,
+            ws.nodes, ws.begin(), ws.keys, ws.items,
+        )  # fmt: skip
+        if status != kern.OVERFLOW:
+            break
+        ws.grow_heap()
+    if status != kern.FOUND:
+        raise NoPathFound(f"no path from {s} to {t} (jps expanded {expanded} jump points)")
+    return GridPlan(trace_jump_path(ws.nodes, stride, sn, tn), float(g_goal), int(expanded), "jps")
 
 
 def _pad_cost(cost: NDArray[np.float64]) -> NDArray[np.float64]:

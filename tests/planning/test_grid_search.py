@@ -148,6 +148,25 @@ def test_jps_equals_astar_on_larger_maps(seed: int) -> None:
         assert_valid(j, occ, start, goal)
 
 
+@pytest.mark.parametrize("shape", [(150, 5), (7, 150), (97, 83)])
+def test_jps_on_thin_tall_and_strided_maps(shape: tuple[int, int]) -> None:
+    """Lines spanning several 64-cell words either way, widths that are not a multiple of 8, and occupancy given
+    as strided views: jps matches the independent Dijkstra."""
+    rng = np.random.default_rng(shape[0])
+    occ = random_map(rng, shape, 0.25)
+    for grid in (occ, occ.T, occ[::-1, ::2]):
+        for _ in range(6):
+            start, goal = free_pair(rng, grid)
+            ref = oracle.distances(grid, start)[goal]
+            if not math.isfinite(ref):
+                with pytest.raises(NoPathFound):
+                    plan_grid(grid, start, goal, algorithm="jps")
+                continue
+            p = plan_grid(grid, start, goal, algorithm="jps")
+            assert p.cost == pytest.approx(ref, abs=1e-9)
+            assert_valid(p, grid, start, goal)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_bfs_optimal_on_4_connected_and_fewest_steps_on_8_connected(seed: int) -> None:
     rng = np.random.default_rng(200 + seed)
