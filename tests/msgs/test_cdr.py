@@ -155,3 +155,32 @@ def test_big_endian_payloads_decode_through_rosbags() -> None:
     big = bytes(STORE.serialize_cdr(msg, "nav_msgs/msg/Odometry", little_endian=False))
     assert big[:2] == b"\x00\x00"
     assert to_dict(decode(big, "nav_msgs/msg/Odometry")) == to_dict(msg)
+
+
+def _float_paths(typename: str, prefix: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    """Attribute paths of the float scalars of ``typename`` (nested messages followed, sequences not)."""
+    out = []
+    for name, (nodetype, desc) in STORE.fielddefs[typename][1]:
+        if nodetype == Nodetype.BASE and desc[0] in ("float32", "float64"):
+            out.append((*prefix, name))
+        elif nodetype == Nodetype.NAME:
+            out += _float_paths(desc, (*prefix, name))
+    return out
+
+
+@pytest.mark.parametrize("typename", [t for t in ALL_TYPES if _float_paths(t)])
+def test_generated_finite_check_agrees_with_the_field_by_field_walk(typename: str) -> None:
+    from mjnav.msgs.codec import _first_nonfinite, all_finite
+
+    rng = np.random.default_rng(11)
+    msg = random_message(typename, rng)
+    assert all_finite(typename)(msg) and _first_nonfinite(msg) is None
+    for path in _float_paths(typename):
+        owner = msg
+        for name in path[:-1]:
+            owner = getattr(owner, name)
+        saved = getattr(owner, path[-1])
+        setattr(owner, path[-1], float("nan"))
+        assert not all_finite(typename)(msg), path
+        assert _first_nonfinite(msg) is not None, path
+        setattr(owner, path[-1], saved)
