@@ -133,7 +133,8 @@ class SimBridge:
     def tick_s(self) -> float:
         """Sim-time period at which :meth:`publish_due` must be called: the shortest publishing period (messages
         of slower schedules go out at the first call at or after their due time)."""
-        return min(e.period for e in (self._clock, self._odom, self._imu, self._obstacles_due))
+        schedules = [self._clock, self._odom, self._imu] + ([self._obstacles_due] if self._obstacles else [])
+        return min(e.period for e in schedules)
 
     def attach(self, runner: SimRunner) -> None:
         """Make :meth:`publish_due` a hook of ``runner`` (every :attr:`tick_s`)."""

@@ -159,8 +159,7 @@ def is_static_body(model: mujoco.MjModel, body: int) -> bool:
 def moving_bodies(model: mujoco.MjModel, robot: RobotBinding) -> tuple[int, ...]:
     """Ids of the bodies outside the robot that can move (they or an ancestor have a joint), e.g. the
     warehouse's carts."""
-    robot_bodies = {int(model.geom_bodyid[g]) for g in robot.robot_geoms} | {robot.root_body}
-    robot_bodies.update(_subtree_bodies(model, robot.root_body))
+    robot_bodies = set(_subtree_bodies(model, robot.root_body))
     return tuple(b for b in range(1, model.nbody) if b not in robot_bodies and not is_static_body(model, b))
 
 
