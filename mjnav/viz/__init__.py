@@ -20,7 +20,7 @@ from typing import Any
 import mjnav.viz._meshcat  # noqa: F401  (first: imports meshcat without its pyzmq deprecation warning)
 from mjnav.viz.browser import find_chromium, screenshot
 from mjnav.viz.errors import BrowserUnavailable, MeshcatServerError, ScreenshotError, VizError
-from mjnav.viz.model import VisualGeom, VisualModel, load_visual_model
+from mjnav.viz.model import MovingBody, VisualGeom, VisualModel, load_visual_model
 from mjnav.viz.scene import Scene
 from mjnav.viz.server import MeshcatClient, MeshcatServer
 from mjnav.viz.view import NavView
@@ -30,6 +30,7 @@ __all__ = [
     "MeshcatClient",
     "MeshcatServer",
     "MeshcatServerError",
+    "MovingBody",
     "NavView",
     "Scene",
     "ScreenshotError",
