@@ -16,6 +16,7 @@ from rosbags.interfaces import Nodetype
 
 from mjnav.msgs import MessageError, decode, encode, from_dict, to_dict, typestore
 from mjnav.msgs.cdr import compiled
+from mjnav.msgs.codec import encoder
 
 STORE = typestore()
 ALL_TYPES = sorted(STORE.types)
@@ -142,6 +143,9 @@ def test_values_the_compiled_path_leaves_to_rosbags() -> None:
     scan.ranges = np.array([1.0, 2.0])
     with pytest.raises(MessageError):
         encode(scan)
+    # a resolved encoder refuses a message of another type (it would otherwise encode by attribute names)
+    with pytest.raises(MessageError, match="expected a geometry_msgs/msg/Twist"):
+        encoder("geometry_msgs/msg/Twist")(scan)
     # an out-of-range integer is refused with a typed error
     twist_time = from_dict("builtin_interfaces/msg/Time", {"sec": 1})
     twist_time.sec = 2**40
