@@ -152,17 +152,13 @@ def heap_sift_down(
     return i
 
 
-@njit(cache=True)
-def heap4_push(
-    keys: NDArray[np.float64], items: NDArray[np.int64], size: int, key: float, item: int
-) -> int:  # pragma: no cover - compiled
-    """Push (key, item) on a 4-ary min-heap ordered by key alone; returns the new size.
-
-    Equal keys come out in no particular order. The arrays must have room (``size < keys.shape[0]``).
-    """
+@njit(cache=True, inline="always")
+def _heap4_sift_up(
+    keys: NDArray[np.float64], items: NDArray[np.int64], i: np.uint64, key: float, item: int
+) -> None:  # pragma: no cover - compiled
+    """Place (key, item) at the hole ``i`` of a 4-ary heap, moving it up past larger parents."""
     one = np.uint64(1)
     two = np.uint64(2)
-    i = np.uint64(size)
     while i > 0:
         p = (i - one) >> two
         if key < keys[p]:
@@ -173,6 +169,17 @@ def heap4_push(
             break
     keys[i] = key
     items[i] = item
+
+
+@njit(cache=True)
+def heap4_push(
+    keys: NDArray[np.float64], items: NDArray[np.int64], size: int, key: float, item: int
+) -> int:  # pragma: no cover - compiled
+    """Push (key, item) on a 4-ary min-heap ordered by key alone; returns the new size.
+
+    Equal keys come out in no particular order. The arrays must have room (``size < keys.shape[0]``).
+    """
+    _heap4_sift_up(keys, items, np.uint64(size), key, item)
     return size + 1
 
 
@@ -218,16 +225,7 @@ def heap4_sift_down(
         keys[i] = keys[m]
         items[i] = items[m]
         i = m
-    while i > 0:
-        p = (i - one) >> two
-        if key < keys[p]:
-            keys[i] = keys[p]
-            items[i] = items[p]
-            i = p
-        else:
-            break
-    keys[i] = key
-    items[i] = item
+    _heap4_sift_up(keys, items, i, key, item)
 
 
 @njit(cache=True)
