@@ -21,6 +21,19 @@ FloatArray = NDArray[np.float64]
 PoseInput = Pose2D | Sequence[float] | NDArray[np.floating]
 
 
+def check_params(params: object, positive: Sequence[str] = (), non_negative: Sequence[str] = ()) -> None:
+    """Raise ValueError naming ``<class>.<field>`` when a ``positive`` field is not finite and > 0 or a
+    ``non_negative`` field not finite and >= 0 (the trackers' parameter checks)."""
+    for name in positive:
+        v = getattr(params, name)
+        if not (math.isfinite(v) and v > 0.0):
+            raise ValueError(f"{type(params).__name__}.{name} must be positive and finite, got {v}")
+    for name in non_negative:
+        v = getattr(params, name)
+        if not (math.isfinite(v) and v >= 0.0):
+            raise ValueError(f"{type(params).__name__}.{name} must be finite and >= 0, got {v}")
+
+
 @njit(cache=True)
 def project_forward(
     pts: NDArray[np.float64], cum: NDArray[np.float64], x: float, y: float, start: int, window_m: float

@@ -9,6 +9,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from mjnav.control._track import check_params
 from mjnav.control.errors import ControlDesignError
 from mjnav.control.tracking import ErrorFeedbackTracker, TrackerParams, TrackingError
 
@@ -122,10 +123,7 @@ class LQRTracker(ErrorFeedbackTracker):
 
     def __init__(self, params: LQRTrackerParams | None = None) -> None:
         p = params if params is not None else LQRTrackerParams()
-        for name in ("q_lateral", "q_heading", "r_yaw_rate", "min_model_speed_mps"):
-            v = getattr(p, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"LQRTrackerParams.{name} must be positive and finite, got {v}")
+        check_params(p, positive=("q_lateral", "q_heading", "r_yaw_rate", "min_model_speed_mps"))
         super().__init__(p)
         self.params: LQRTrackerParams = p
         self._gains: dict[tuple[float, float], FloatArray] = {}

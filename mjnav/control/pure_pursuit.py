@@ -8,7 +8,14 @@ from typing import Literal
 
 from numpy.typing import ArrayLike
 
-from mjnav.control._track import PathProgress, PoseInput, lookahead_point, signed_cross_track, unpack_pose
+from mjnav.control._track import (
+    PathProgress,
+    PoseInput,
+    check_params,
+    lookahead_point,
+    signed_cross_track,
+    unpack_pose,
+)
 from mjnav.control.regulation import (
     adaptive_lookahead,
     approach_regulated_speed,
@@ -63,29 +70,25 @@ class PurePursuitParams:
     search_window_m: float = 2.0
 
     def __post_init__(self) -> None:
-        positive = (
-            "desired_speed_mps",
-            "min_lookahead_m",
-            "max_lookahead_m",
-            "curvature_threshold_invm",
-            "proximity_distance_m",
-            "approach_distance_m",
-            "min_approach_speed_mps",
-            "goal_tolerance_m",
-            "rotate_threshold_rad",
-            "rotate_gain_per_s",
-            "max_rotate_speed_radps",
-            "max_angular_speed_radps",
-            "search_window_m",
+        check_params(
+            self,
+            positive=(
+                "desired_speed_mps",
+                "min_lookahead_m",
+                "max_lookahead_m",
+                "curvature_threshold_invm",
+                "proximity_distance_m",
+                "approach_distance_m",
+                "min_approach_speed_mps",
+                "goal_tolerance_m",
+                "rotate_threshold_rad",
+                "rotate_gain_per_s",
+                "max_rotate_speed_radps",
+                "max_angular_speed_radps",
+                "search_window_m",
+            ),
+            non_negative=("lookahead_gain_s", "min_regulated_speed_mps"),
         )
-        for name in positive:
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"PurePursuitParams.{name} must be positive and finite, got {v}")
-        for name in ("lookahead_gain_s", "min_regulated_speed_mps"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"PurePursuitParams.{name} must be finite and >= 0, got {v}")
         if self.max_lookahead_m < self.min_lookahead_m:
             raise ValueError("PurePursuitParams.max_lookahead_m must be >= min_lookahead_m")
 

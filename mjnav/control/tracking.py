@@ -11,6 +11,7 @@ from mjnav.control._track import (
     PathProgress,
     PoseInput,
     PreparedPath,
+    check_params,
     project_forward,
     signed_cross_track,
     unpack_pose,
@@ -122,22 +123,22 @@ class TrackerParams:
     search_window_m: float = 2.0
 
     def __post_init__(self) -> None:
-        for name in (
-            "desired_speed_mps",
-            "dt_s",
-            "max_angular_speed_radps",
-            "proximity_distance_m",
-            "approach_distance_m",
-            "min_approach_speed_mps",
-            "goal_tolerance_m",
-            "rotate_threshold_rad",
-            "rotate_gain_per_s",
-            "max_rotate_speed_radps",
-            "search_window_m",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"{type(self).__name__}.{name} must be positive and finite, got {v}")
+        check_params(
+            self,
+            positive=(
+                "desired_speed_mps",
+                "dt_s",
+                "max_angular_speed_radps",
+                "proximity_distance_m",
+                "approach_distance_m",
+                "min_approach_speed_mps",
+                "goal_tolerance_m",
+                "rotate_threshold_rad",
+                "rotate_gain_per_s",
+                "max_rotate_speed_radps",
+                "search_window_m",
+            ),
+        )
 
 
 class ErrorFeedbackTracker:
