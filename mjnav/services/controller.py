@@ -1,20 +1,26 @@
 """The controller service: pure pursuit on ``path`` → ``cmd_vel`` at ``rate_hz`` of sim time.
 
 Speed is regulated by curvature and by the nearest obstacle the lidar sees in front (``scan``); the robot slows on
-approach and stops at the goal, reporting ``reached`` on ``goal_status``. It stops (and keeps publishing zero) when
-there is no path, the goal failed or was canceled, the pose is stale, or the robot is further than
-``lost_distance_m`` from the path (the planner's next replan gives a new one).
+approach and stops at the goal, reporting ``reached`` on ``goal_status``. Every command then passes a last-line
+collision check against the robot's own scan (:func:`mjnav.control.collision.safe_command`): the commanded arc is
+rolled forward against the scan's points — moving ones at the velocities two consecutive scans give — and a command
+that would collide is replaced by a slower, stopped or (to clear a crossing obstacle) faster one on the same
+curvature. It stops (and keeps publishing zero) when there is no path, the goal failed or was canceled, the pose is
+stale, or the robot is further than ``lost_distance_m`` from the path (the planner's next replan gives a new one).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
 from mjnav.control import PathError, PurePursuit, PurePursuitParams, nearest_obstacle_ahead
+from mjnav.control.collision import CollisionCheckParams, point_velocities, safe_command, scan_points
+from mjnav.geometry import Pose2D, PoseHistory
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
 
@@ -38,6 +44,10 @@ class ControllerConfig:
         pose_timeout_s: stop when the newest pose is older than this (sim seconds).
         path_timeout_s: stop when no path arrived for this long (sim seconds; the planner re-sends every second).
         lost_distance_m: stop when the robot is further than this from the path.
+        collision_margin_m: clearance the collision check keeps beyond ``robot_radius_m``.
+        collision_static_horizon_s: how far ahead (seconds of the commanded arc) static scan points are checked.
+        collision_moving_horizon_s: how far ahead moving scan points are checked.
+        moving_speed_mps: scan points moving faster than this between two scans count as moving.
     """
 
     rate_hz: float = 20.0
@@ -54,6 +64,10 @@ class ControllerConfig:
     pose_timeout_s: float = 0.5
     path_timeout_s: float = 3.0
     lost_distance_m: float = 1.0
+    collision_margin_m: float = 0.03
+    collision_static_horizon_s: float = 0.6
+    collision_moving_horizon_s: float = 4.0
+    moving_speed_mps: float = 0.25
 
     def __post_init__(self) -> None:
         for name in (
@@ -79,6 +93,17 @@ class ControllerConfig:
             goal_tolerance_m=self.goal_tolerance_m,
         )
 
+    def collision_params(self) -> CollisionCheckParams:
+        """The collision check these settings stand for."""
+        return CollisionCheckParams(
+            robot_radius_m=self.robot_radius_m,
+            margin_m=self.collision_margin_m,
+            static_horizon_s=self.collision_static_horizon_s,
+            moving_horizon_s=self.collision_moving_horizon_s,
+            moving_speed_mps=self.moving_speed_mps,
+            max_speed_mps=self.max_speed_mps,
+        )
+
 
 class ControllerService(Service[ControllerConfig]):
     """Follows the smoothed path with pure pursuit."""
@@ -88,8 +113,9 @@ class ControllerService(Service[ControllerConfig]):
 
     def configure(self) -> None:
         self.pursuit = PurePursuit(self.config.pursuit_params())
+        self.collision = self.config.collision_params()
         self.path_sub = self.bus.subscribe("path")
-        self.pose_sub = self.bus.subscribe(self.config.pose_source)
+        self.pose_sub = self.bus.subscribe(self.config.pose_source, callback=self._on_pose)
         self.scan_sub = self.bus.subscribe("scan")
         self.status_sub = self.bus.subscribe("goal_status")
         self.cmd_pub = self.bus.publisher("cmd_vel")
@@ -99,6 +125,9 @@ class ControllerService(Service[ControllerConfig]):
         self.stopped_reason = ""
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
+        # Pose callbacks only append here; step() moves them into the history (scan points need the pose of their
+        # stamp).
+        self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
 
     def activate(self) -> None:
         # Also called again when the sim clock restarts: the goal is re-adopted from the planner's heartbeat.
@@ -110,6 +139,49 @@ class ControllerService(Service[ControllerConfig]):
         self.path_points_msg: Any = None
         self.speed = 0.0
         self.pursuit.reset()
+        self.poses = PoseHistory(horizon_s=2.0)
+        self.pending.clear()
+        # The newest scan's valid returns and their velocities in the map frame, and its stamp.
+        self.obstacles: tuple[float, Any, Any] | None = None
+
+    def _on_pose(self, msg: Any) -> None:
+        pose = msg.pose.pose if self.config.pose_source == "odom" else msg.pose
+        self.pending.append((ros.seconds(msg.header.stamp), ros.pose2d(pose)))
+
+    def _update_obstacles(self) -> None:
+        """Fuse a new scan: its points in the map frame (at the pose of its stamp) and their velocities."""
+        while self.pending:
+            self.poses.add(*self.pending.popleft())
+        scan = self.scan_sub.take()
+        if scan is None:
+            return
+        stamp = ros.seconds(scan.header.stamp)
+        pose = self.poses.at(stamp)
+        if pose is None:
+            return
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(scan.ranges))
+        points = pose.transform_points(scan_points(angles, scan.ranges, scan.range_min, scan.range_max))
+        if self.obstacles is not None and 0 < stamp - self.obstacles[0] <= 0.5:
+            velocities = point_velocities(
+                points, self.obstacles[1], stamp - self.obstacles[0], self.collision.moving_speed_mps
+            )
+        else:
+            velocities = np.zeros_like(points)
+        self.obstacles = (stamp, points, velocities)
+
+    def _checked(self, pose: Pose2D, v: float, w: float) -> tuple[float, float]:
+        """(v, ω) after the collision check against the newest scan (unchanged without one)."""
+        if self.obstacles is None:
+            return v, w
+        _, points, velocities = self.obstacles
+        inverse = pose.inverse()
+        local = inverse.transform_points(points)
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        local_vel = velocities @ np.array([[c, -s], [s, c]])  # rotate map-frame velocities into the robot frame
+        safe_v, safe_w, ttc = safe_command(v, w, local, local_vel, self.collision)
+        if (safe_v, safe_w) != (v, w):
+            self.log.debug("collision check: (%.2f, %.2f) -> (%.2f, %.2f), ttc %.2f s", v, w, safe_v, safe_w, ttc)
+        return safe_v, safe_w
 
     def _stop(self, reason: str) -> None:
         self.cmd_pub.put(ros.twist(0.0, 0.0))
@@ -146,6 +218,7 @@ class ControllerService(Service[ControllerConfig]):
         return self.path_points
 
     def step(self, now: float) -> None:
+        self._update_obstacles()
         self._track_goal()
         path = self._current_path(now)
         if self.goal is None:
@@ -176,6 +249,7 @@ class ControllerService(Service[ControllerConfig]):
         if abs(status.cross_track_m) > self.config.lost_distance_m:
             self._stop(f"{abs(status.cross_track_m):.2f} m off the path: waiting for a new plan")
             return
+        v, w = self._checked(pose, v, w)
         self.stopped_reason = ""
         self.speed = v
         self.cmd_pub.put(ros.twist(v, w))

@@ -1,0 +1,172 @@
+"""Last-line collision check on the commanded arc, against the robot's own scan (moving obstacles included).
+
+A command (v, ω) is checked by rolling the robot forward on its arc and the scan's points forward at their own
+velocities; the first time the robot's disc (radius + margin) reaches a point is the time to collision (TTC).
+Static points are checked over a short horizon — the distance the robot needs to stop, not the whole route, so a
+path that curves away from a wall is not mistaken for a collision — and moving points over a longer one, so the
+robot can wait at the edge of an aisle for a cart to pass, or clear it at full speed rather than stop in its way.
+
+Point velocities come from two consecutive scans expressed in one fixed frame: each current point's
+displacement to the nearest previous point, per second. That sees motion along a surface's normal (a face
+approaching the robot) and not along it (the aperture problem), which is the part that matters here; speeds below
+``moving_speed_mps`` are noise and count as static.
+
+:func:`safe_command` picks, among the pursuit command and slower, faster (up to ``max_speed_mps``) or stopped
+versions of it on the same curvature, the first that is collision-free, or else the one whose collision is
+furthest away (Nav2's collision monitor stops or slows; this also lets the robot escape a crossing obstacle).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
+
+from mjnav.control._track import check_params
+
+FloatArray = NDArray[np.float64]
+
+#: Slower speeds tried on the command's curvature, as fractions of it (the last one stops).
+_FRACTIONS = (0.75, 0.5, 0.25, 0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class CollisionCheckParams:
+    """Settings of the collision check.
+
+    Attributes:
+        robot_radius_m: radius of the robot's footprint disc, metres, > 0.
+        margin_m: extra clearance the check keeps, metres, >= 0.
+        static_horizon_s: how far ahead static points are checked, seconds, > 0.
+        moving_horizon_s: how far ahead moving points are checked, seconds, >= static_horizon_s.
+        step_s: time step of the roll-out, seconds, > 0.
+        moving_speed_mps: points moving slower than this are static, m/s, > 0.
+        max_speed_mps: fastest speed an escape may use (forward; backing off uses half of it), m/s, > 0.
+        range_m: points further than this from the robot are ignored, metres, > 0.
+    """
+
+    robot_radius_m: float = 0.18
+    margin_m: float = 0.03
+    static_horizon_s: float = 0.6
+    moving_horizon_s: float = 4.0
+    step_s: float = 0.05
+    moving_speed_mps: float = 0.25
+    max_speed_mps: float = 0.5
+    range_m: float = 4.0
+
+    def __post_init__(self) -> None:
+        check_params(
+            self,
+            positive=(
+                "robot_radius_m",
+                "static_horizon_s",
+                "moving_horizon_s",
+                "step_s",
+                "moving_speed_mps",
+                "max_speed_mps",
+                "range_m",
+            ),
+            non_negative=("margin_m",),
+        )
+        if self.moving_horizon_s < self.static_horizon_s:
+            raise ValueError("CollisionCheckParams.moving_horizon_s must be >= static_horizon_s")
+
+
+def scan_points(angles_rad: ArrayLike, ranges_m: ArrayLike, range_min_m: float, range_max_m: float) -> FloatArray:
+    """(M, 2) sensor-frame points of the valid returns (finite, within [range_min, range_max)), metres."""
+    a = np.asarray(angles_rad, dtype=np.float64)
+    r = np.asarray(ranges_m, dtype=np.float64)
+    ok = np.isfinite(r) & (r >= range_min_m) & (r < range_max_m)
+    return np.column_stack((r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])))
+
+
+def point_velocities(points_xy: ArrayLike, previous_xy: ArrayLike, dt_s: float, min_speed_mps: float) -> FloatArray:
+    """(M, 2) velocity of each current point: displacement from its nearest previous point per second.
+
+    Both point sets must be in one fixed frame. Speeds below ``min_speed_mps`` are set to zero (static); with no
+    previous points every velocity is zero.
+    """
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    q = np.asarray(previous_xy, dtype=np.float64).reshape(-1, 2)
+    if len(p) == 0 or len(q) == 0 or not dt_s > 0:
+        return np.zeros_like(p)
+    _, idx = cKDTree(q).query(p)
+    vel = (p - q[idx]) / dt_s
+    vel[np.hypot(vel[:, 0], vel[:, 1]) < min_speed_mps] = 0.0
+    return vel
+
+
+def _arc(v_mps: float, omega_radps: float, t: FloatArray) -> FloatArray:
+    """(K, 2) positions of a robot starting at the origin facing +x, on the arc (v, ω), at times t."""
+    if abs(omega_radps) < 1e-9:
+        return np.column_stack((v_mps * t, np.zeros_like(t)))
+    r = v_mps / omega_radps
+    return np.column_stack((r * np.sin(omega_radps * t), r * (1.0 - np.cos(omega_radps * t))))
+
+
+def time_to_collision(
+    v_mps: float, omega_radps: float, points_xy: ArrayLike, velocities_mps: ArrayLike, params: CollisionCheckParams
+) -> float:
+    """Seconds until the robot on the arc (v, ω) first comes within radius + margin of a (moving) point.
+
+    Args:
+        v_mps, omega_radps: the command.
+        points_xy: (M, 2) points in the robot frame (x forward), metres.
+        velocities_mps: (M, 2) their velocities in the same frame, m/s (zero for static points).
+        params: radius, margin and horizons.
+
+    Returns:
+        The time, seconds (0 when already in contact); ``inf`` when no contact within the horizons.
+    """
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    u = np.asarray(velocities_mps, dtype=np.float64).reshape(-1, 2)
+    near = np.hypot(p[:, 0], p[:, 1]) <= params.range_m
+    p, u = p[near], u[near]
+    if len(p) == 0:
+        return math.inf
+    reach2 = (params.robot_radius_m + params.margin_m) ** 2
+    t = np.arange(0.0, params.moving_horizon_s + 1e-9, params.step_s)
+    robot = _arc(v_mps, omega_radps, t)  # (K, 2)
+    moving = np.any(u != 0.0, axis=1)
+    # (M, K) squared distances between the robot and each point at each time.
+    d2 = (p[:, None, 0] + u[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
+        p[:, None, 1] + u[:, None, 1] * t[None, :] - robot[None, :, 1]
+    ) ** 2
+    hit = d2 < reach2
+    hit[~moving, :] &= t[None, :] <= params.static_horizon_s + 1e-9
+    k = np.flatnonzero(hit.any(axis=0))
+    return float(t[k[0]]) if len(k) else math.inf
+
+
+def safe_command(
+    v_mps: float, omega_radps: float, points_xy: ArrayLike, velocities_mps: ArrayLike, params: CollisionCheckParams
+) -> tuple[float, float, float]:
+    """The command to send instead of (v, ω): the same curvature at the first collision-free speed of v,
+    ``max_speed_mps``, 0.75 v, 0.5 v, 0.25 v, 0 and, last, straight back at half ``max_speed_mps`` (out of a
+    crossing obstacle's way), else the one whose collision is furthest away.
+
+    Args:
+        v_mps, omega_radps: the tracker's command (forward speed >= 0).
+        points_xy, velocities_mps: the scan's points and their velocities in the robot frame (see
+            :func:`time_to_collision`).
+        params: the check's settings.
+
+    Returns:
+        (v m/s, ω rad/s, time to collision of the chosen command in s: inf when it is collision-free).
+    """
+    kappa = omega_radps / v_mps if v_mps > 1e-9 else 0.0
+    candidates = [(v_mps, omega_radps)]
+    candidates += [(s, kappa * s) for s in (params.max_speed_mps, *(f * v_mps for f in _FRACTIONS))]
+    candidates.append((-0.5 * params.max_speed_mps, 0.0))
+    best: tuple[float, float, float] | None = None
+    for s, w in candidates:
+        ttc = time_to_collision(s, w, points_xy, velocities_mps, params)
+        if math.isinf(ttc):
+            return s, w, ttc
+        if best is None or ttc > best[2]:
+            best = (s, w, ttc)
+    assert best is not None
+    return best
