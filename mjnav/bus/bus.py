@@ -85,20 +85,21 @@ class _RejectLog:
             self._suppressed[key] = self._suppressed.get(key, 0) + 1
 
 
-def publisher_qos() -> dict[str, Any]:
+def publisher_qos(row: Topic) -> dict[str, Any]:
     """Zenoh publisher options of a topic: reliable and blocking for every topic, at one priority.
 
     Nothing is dropped in transit — a lockstep step must see every message its peers sent before it, a lost
     costmap or clock would change or stall the run — and one priority keeps one publisher's messages in the order
     they were sent whatever their topic (a participant's messages reach the others before its ``lockstep``
-    report). Not ``express``: batching keeps throughput up when the sim publishes thousands of messages per second.
-    Snapshot and event topics differ only at the subscriber (newest kept, or every message queued).
+    report). Only the topics that close a lockstep round (clock, lockstep reports) are ``express``; the others are
+    batched, which keeps throughput up when the sim publishes thousands of messages per second. Snapshot and event
+    topics differ only at the subscriber (newest kept, or every message queued).
     """
     return {
         "congestion_control": zenoh.CongestionControl.BLOCK,
         "reliability": zenoh.Reliability.RELIABLE,
         "priority": zenoh.Priority.DATA,
-        "express": False,
+        "express": row.express,
     }
 
 
@@ -109,7 +110,7 @@ class Publisher:
         self.topic = row
         self.key = key
         self._bus = bus
-        self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos())
+        self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos(row))
         self._encode = codec.encoder(row.msgtype)
 
     def put(self, msg: Any) -> None:

@@ -39,6 +39,8 @@ class Topic:
         rate: nominal rate, as text for the docs ("10 Hz", "on change").
         description: one line for the README.
         per_service: the key carries the service name: ``<namespace>/<name>/<service>``.
+        express: sent at once rather than batched (the clock and lockstep reports: each closes a lockstep round,
+            and sending it flushes what its publisher batched before it).
     """
 
     name: str
@@ -48,6 +50,7 @@ class Topic:
     rate: str
     description: str
     per_service: bool = False
+    express: bool = False
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this topic in ``namespace``; per-service topics need ``service``
@@ -70,6 +73,7 @@ class Endpoint:
     server: str
     description: str
     per_service: bool = False
+    express: bool = False
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this endpoint in ``namespace`` (``service`` for per-service endpoints)."""
@@ -104,6 +108,7 @@ TOPICS: dict[str, Topic] = {
             "sim",
             "100 Hz sim time",
             "Simulation time; every service steps on it",
+            express=True,
         ),
         Topic("scan", "sensor_msgs/msg/LaserScan", _S, "sim", "10 Hz", "Planar lidar, frame `laser`"),
         Topic(
@@ -180,6 +185,7 @@ TOPICS: dict[str, Topic] = {
             "after each step",
             "Lockstep barrier: the step just done and when the next is due; the sim waits for it",
             per_service=True,
+            express=True,
         ),
     )
 }

@@ -64,8 +64,8 @@ class ControllerConfig:
     pose_timeout_s: float = 0.5
     path_timeout_s: float = 3.0
     lost_distance_m: float = 1.0
-    collision_margin_m: float = 0.03
-    collision_static_horizon_s: float = 0.6
+    collision_margin_m: float = 0.02
+    collision_static_horizon_s: float = 0.3
     collision_moving_horizon_s: float = 4.0
     moving_speed_mps: float = 0.25
 
