@@ -1,7 +1,8 @@
 """Last-line collision check on the commanded arc, against the robot's own scan (moving obstacles included).
 
 A command (v, ω) is checked by rolling the robot forward on its arc and the scan's points forward at their own
-velocities; the first time the robot's disc (radius + margin) reaches a point is the time to collision (TTC).
+velocities; the first time the robot's disc (radius + margin, growing with the prediction time for moving points)
+reaches a point is the time to collision (TTC).
 Static points are checked over a short horizon — the distance the robot needs to stop, not the whole route, so a
 path that curves away from a wall is not mistaken for a collision — and moving points over a longer one, so the
 robot can wait at the edge of an aisle for a cart to pass, or clear it at full speed rather than stop in its way.
@@ -44,6 +45,8 @@ class CollisionCheckParams:
         moving_horizon_s: how far ahead moving points are checked, seconds, >= static_horizon_s.
         step_s: time step of the roll-out, seconds, > 0.
         moving_speed_mps: points moving slower than this are static, m/s, > 0.
+        uncertainty_growth_mps: the clearance kept from a moving point grows by this per second of prediction (its
+            velocity is a two-scan estimate and obstacles accelerate), m/s, >= 0.
         max_speed_mps: fastest speed an escape may use (forward; backing off uses half of it), m/s, > 0.
         range_m: points further than this from the robot are ignored, metres, > 0.
     """
@@ -54,6 +57,7 @@ class CollisionCheckParams:
     moving_horizon_s: float = 4.0
     step_s: float = 0.05
     moving_speed_mps: float = 0.25
+    uncertainty_growth_mps: float = 0.1
     max_speed_mps: float = 0.5
     range_m: float = 4.0
 
@@ -69,7 +73,7 @@ class CollisionCheckParams:
                 "max_speed_mps",
                 "range_m",
             ),
-            non_negative=("margin_m",),
+            non_negative=("margin_m", "uncertainty_growth_mps"),
         )
         if self.moving_horizon_s < self.static_horizon_s:
             raise ValueError("CollisionCheckParams.moving_horizon_s must be >= static_horizon_s")
@@ -83,10 +87,20 @@ def scan_points(angles_rad: ArrayLike, ranges_m: ArrayLike, range_min_m: float, 
     return np.column_stack((r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])))
 
 
-def point_velocities(points_xy: ArrayLike, previous_xy: ArrayLike, dt_s: float, min_speed_mps: float) -> FloatArray:
-    """(M, 2) velocity of each current point: displacement from its nearest previous point per second.
+def point_velocities(
+    points_xy: ArrayLike,
+    previous_xy: ArrayLike,
+    dt_s: float,
+    min_speed_mps: float,
+    max_speed_mps: float = 1.5,
+    neighbours: int = 5,
+) -> FloatArray:
+    """(M, 2) velocity of each current point: displacement from its nearest previous point per second, as the
+    component-wise median over the point and its ``neighbours - 1`` nearest current neighbours.
 
-    Both point sets must be in one fixed frame. Speeds below ``min_speed_mps`` are set to zero (static); with no
+    Both point sets must be in one fixed frame. The median keeps a surface's common motion and drops lone jumps;
+    speeds below ``min_speed_mps`` (noise, motion along a surface) and above ``max_speed_mps`` (a point that
+    appeared from behind an edge as the robot moved, not an obstacle that moved) count as static, zero. With no
     previous points every velocity is zero.
     """
     p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
@@ -94,9 +108,14 @@ def point_velocities(points_xy: ArrayLike, previous_xy: ArrayLike, dt_s: float, 
     if len(p) == 0 or len(q) == 0 or not dt_s > 0:
         return np.zeros_like(p)
     _, idx = cKDTree(q).query(p)
-    vel = (p - q[idx]) / dt_s
-    vel[np.hypot(vel[:, 0], vel[:, 1]) < min_speed_mps] = 0.0
-    return vel
+    raw = (p - q[idx]) / dt_s
+    k = min(neighbours, len(p))
+    if k > 1:
+        _, near = cKDTree(p).query(p, k=k)
+        raw = np.median(raw[near], axis=1)
+    speed = np.hypot(raw[:, 0], raw[:, 1])
+    raw[(speed < min_speed_mps) | (speed > max_speed_mps)] = 0.0
+    return raw
 
 
 def _arc(v_mps: float, omega_radps: float, t: FloatArray) -> FloatArray:
@@ -127,7 +146,7 @@ def time_to_collision(
     p, u = p[near], u[near]
     if len(p) == 0:
         return math.inf
-    reach2 = (params.robot_radius_m + params.margin_m) ** 2
+    reach = params.robot_radius_m + params.margin_m
     t = np.arange(0.0, params.moving_horizon_s + 1e-9, params.step_s)
     robot = _arc(v_mps, omega_radps, t)  # (K, 2)
     moving = np.any(u != 0.0, axis=1)
@@ -135,8 +154,9 @@ def time_to_collision(
     d2 = (p[:, None, 0] + u[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
         p[:, None, 1] + u[:, None, 1] * t[None, :] - robot[None, :, 1]
     ) ** 2
-    hit = d2 < reach2
-    hit[~moving, :] &= t[None, :] <= params.static_horizon_s + 1e-9
+    hit = np.empty(d2.shape, dtype=bool)
+    hit[~moving] = (d2[~moving] < reach * reach) & (t[None, :] <= params.static_horizon_s + 1e-9)
+    hit[moving] = d2[moving] < (reach + params.uncertainty_growth_mps * t[None, :]) ** 2
     k = np.flatnonzero(hit.any(axis=0))
     return float(t[k[0]]) if len(k) else math.inf
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -15,7 +16,14 @@ from mjnav.control.collision import (
     time_to_collision,
 )
 
-P = CollisionCheckParams(robot_radius_m=0.2, margin_m=0.0, static_horizon_s=0.6, moving_horizon_s=4.0, step_s=0.05)
+P = CollisionCheckParams(
+    robot_radius_m=0.2,
+    margin_m=0.0,
+    static_horizon_s=0.6,
+    moving_horizon_s=4.0,
+    step_s=0.05,
+    uncertainty_growth_mps=0.0,
+)
 
 
 def _wall(x: float) -> np.ndarray:
@@ -29,6 +37,9 @@ def test_time_to_collision_hand_worked() -> None:
     # first seen on the 0.05 s grid at 1.85 s.
     ttc = time_to_collision(0.5, 0.0, [[2.03, 0.0]], [[-0.5, 0.0]], P)
     assert ttc == pytest.approx(1.85)
+    # With the clearance growing 0.1 m per second of prediction: 2.03 − t < 0.2 + 0.1 t from t = 1.664 s (1.7).
+    grown = dataclasses.replace(P, uncertainty_growth_mps=0.1)
+    assert time_to_collision(0.5, 0.0, [[2.03, 0.0]], [[-0.5, 0.0]], grown) == pytest.approx(1.7)
     # The same point static is 1.83 m of driving away: beyond the 0.6 s static horizon.
     assert math.isinf(time_to_collision(0.5, 0.0, [[2.03, 0.0]], [[0.0, 0.0]], P))
     # A static point 0.42 m ahead is reached after 0.44 s (0.45 on the grid); on a sharp left arc the robot turns
