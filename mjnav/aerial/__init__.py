@@ -1,0 +1,70 @@
+"""Aerial navigation library: WGS84/local frames, ZYX Euler kinematics, GPS/INS, quadrotor model and control,
+and an onboard task scheduler. Pure: numpy, scipy and numba only.
+
+Conventions: NED local frame, body FRD, ZYX (yaw-pitch-roll) Euler angles in radians, geodetic latitude and
+longitude in degrees, SI units elsewhere.
+"""
+
+from mjnav.aerial.errors import (
+    AerialError,
+    DesignError,
+    GimbalLockError,
+    InvalidParameterError,
+    LoopSeparationError,
+    StaleMeasurementError,
+)
+from mjnav.aerial.frames import (
+    WGS84_A,
+    WGS84_E2,
+    WGS84_F,
+    body_to_ned,
+    ecef_to_enu,
+    ecef_to_geodetic,
+    ecef_to_ned,
+    enu_to_ecef,
+    enu_to_geodetic,
+    euler_from_quat,
+    euler_rate_matrix,
+    euler_rates,
+    geodetic_to_ecef,
+    geodetic_to_enu,
+    geodetic_to_ned,
+    ned_to_body,
+    ned_to_ecef,
+    ned_to_geodetic,
+    quat_from_euler,
+    quat_multiply,
+    quat_to_rotation,
+    rotation_body_to_ned,
+)
+
+__all__ = [
+    "WGS84_A",
+    "WGS84_E2",
+    "WGS84_F",
+    "AerialError",
+    "DesignError",
+    "GimbalLockError",
+    "InvalidParameterError",
+    "LoopSeparationError",
+    "StaleMeasurementError",
+    "body_to_ned",
+    "ecef_to_enu",
+    "ecef_to_geodetic",
+    "ecef_to_ned",
+    "enu_to_ecef",
+    "enu_to_geodetic",
+    "euler_from_quat",
+    "euler_rate_matrix",
+    "euler_rates",
+    "geodetic_to_ecef",
+    "geodetic_to_enu",
+    "geodetic_to_ned",
+    "ned_to_body",
+    "ned_to_ecef",
+    "ned_to_geodetic",
+    "quat_from_euler",
+    "quat_multiply",
+    "quat_to_rotation",
+    "rotation_body_to_ned",
+]
