@@ -37,8 +37,10 @@ from mjnav.aerial.frames import (
     quat_to_rotation,
     rotation_body_to_ned,
 )
+from mjnav.aerial.scheduler import SEED_TASK_ORDER, Scheduler, Task, TaskStats, default_task_table
 
 __all__ = [
+    "SEED_TASK_ORDER",
     "WGS84_A",
     "WGS84_E2",
     "WGS84_F",
@@ -47,8 +49,12 @@ __all__ = [
     "GimbalLockError",
     "InvalidParameterError",
     "LoopSeparationError",
+    "Scheduler",
     "StaleMeasurementError",
+    "Task",
+    "TaskStats",
     "body_to_ned",
+    "default_task_table",
     "ecef_to_enu",
     "ecef_to_geodetic",
     "ecef_to_ned",
