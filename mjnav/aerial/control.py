@@ -159,7 +159,7 @@ class CascadeGains:
 
     pos_p: tuple[float, float, float] = (1.0, 1.0, 1.5)
     vel_p: tuple[float, float, float] = (2.5, 2.5, 4.0)
-    vel_i: tuple[float, float, float] = (0.4, 0.4, 1.0)
+    vel_i: tuple[float, float, float] = (0.4, 0.4, 2.0)
     vel_d: tuple[float, float, float] = (0.0, 0.0, 0.0)
     att_p: tuple[float, float, float] = (7.0, 7.0, 3.0)
     rate_p: tuple[float, float, float] = (25.0, 25.0, 10.0)
