@@ -15,7 +15,9 @@ a compiled scalar kernel (no array round trip), so scalar calls cost about a mic
 `ecef_to_geodetic` is Vermeille's closed form (J. Geodesy 76, 2002; 85, 2011) with the cubic solved by the
 trigonometric form where its discriminant is negative (points inside the evolute, near the centre) and the
 equatorial-plane case inside the evolute solved directly, so it is exact (no iteration) and finite everywhere:
-poles, z = 0, the antimeridian, the centre of the Earth, and altitudes to tens of thousands of kilometres.
+poles, z = 0, the antimeridian, the centre of the Earth, and altitudes to tens of thousands of kilometres. Array
+calls run a branch-free vectorised form of the same formula (a polynomial atan2 accurate to 6e-16 rad and a Halley
+cube root) and hand the few points it does not cover (deep inside the Earth) to the exact scalar kernel.
 """
 
 from __future__ import annotations
@@ -150,6 +152,98 @@ def _enu2ecef(e: float, n: float, u: float, lat0: float, lon0: float, h0: float)
     return x0 + co * t - so * e, y0 + so * t + co * e, z0 + sl * u + cl * n
 
 
+# Branch-free fast path for arrays (LLVM vectorises it): a polynomial atan2 and Halley's cube root replace the libm
+# calls. Points the fast path does not cover (inside the evolute or far below the surface: r <= 0 or s > 1) are
+# flagged and redone by the exact scalar kernel above.
+
+# atan(t)/t = P(t²) for |t| <= tan(π/8): Chebyshev least-squares fit (degree 9 in t²), max error 6e-16 rad.
+_ATAN_C = (
+    0.9999999999999994,
+    -0.3333333333322165,
+    0.1999999997841435,
+    -0.14285712661858607,
+    0.11111048822077872,
+    -0.09089528779683545,
+    0.07673517252047024,
+    -0.06505839577488139,
+    0.050241935707753746,
+    -0.025307491891893078,
+)
+_TAN_PI_8 = math.tan(math.pi / 8.0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _atan2_fast(y: float, x: float) -> float:
+    ax = abs(x)
+    ay = abs(y)
+    mx = max(ax, ay)
+    mn = min(ax, ay)
+    t = mn / mx if mx > 0.0 else 0.0
+    big = t > _TAN_PI_8
+    t = (t - 1.0) / (t + 1.0) if big else t
+    s = t * t
+    c = _ATAN_C
+    poly = c[9]
+    poly = poly * s + c[8]
+    poly = poly * s + c[7]
+    poly = poly * s + c[6]
+    poly = poly * s + c[5]
+    poly = poly * s + c[4]
+    poly = poly * s + c[3]
+    poly = poly * s + c[2]
+    poly = poly * s + c[1]
+    poly = poly * s + c[0]
+    a = t * poly + (0.25 * math.pi if big else 0.0)
+    a = 0.5 * math.pi - a if ay > ax else a
+    a = math.pi - a if x < 0.0 else a
+    return -a if y < 0.0 else a
+
+
+@njit(cache=True, error_model="numpy")
+def _ecef2geo_fast_loop(
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray, flag: np.ndarray
+) -> int:
+    a2 = WGS84_A * WGS84_A
+    e2 = WGS84_E2
+    e4 = e2 * e2
+    e2m = 1.0 - e2
+    slope = (3.7320508075688772 ** (1.0 / 3.0) - 1.0) / 2.7320508075688772
+    for i in range(x.size):
+        xi = x[i]
+        yi = y[i]
+        zi = z[i]
+        rr = xi * xi + yi * yi
+        rxy = math.sqrt(rr)
+        p = rr / a2
+        q = e2m * zi * zi / a2
+        r = (p + q - e4) / 6.0
+        s = e4 * p * q / (4.0 * r * r * r)
+        flag[i] = not (r > 0.0 and s <= 1.0)
+        aa = 1.0 + s + math.sqrt(s * (2.0 + s))
+        g = 1.0 + slope * (aa - 1.0)
+        for _ in range(3):  # Halley: g <- g (g³ + 2A) / (2g³ + A)
+            g3 = g * g * g
+            g = g * (g3 + 2.0 * aa) / (2.0 * g3 + aa)
+        u = r * (1.0 + g + 1.0 / g)
+        v = math.sqrt(u * u + e4 * q)
+        uv = u + v
+        w = e2 * (uv - q) / (2.0 * v)
+        k = uv / (math.sqrt(uv + w * w) + w)
+        d = k * rxy / (k + e2)
+        lat[i] = _atan2_fast(zi * (k + e2), k * rxy) / _DEG
+        lon[i] = _atan2_fast(yi, xi) / _DEG
+        h[i] = (k + e2 - 1.0) / k * math.sqrt(d * d + zi * zi)
+    n_slow = 0
+    for i in range(x.size):
+        if flag[i]:
+            la, lo, hh = _ecef2geo(x[i], y[i], z[i])
+            lat[i] = la / _DEG
+            lon[i] = lo / _DEG
+            h[i] = hh
+            n_slow += 1
+    return n_slow
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # array loops
 
@@ -158,15 +252,6 @@ def _enu2ecef(e: float, n: float, u: float, lat0: float, lon0: float, h0: float)
 def _geo2ecef_loop(lat: np.ndarray, lon: np.ndarray, h: np.ndarray, out: np.ndarray) -> None:
     for i in range(lat.size):
         out[0, i], out[1, i], out[2, i] = _geo2ecef(lat[i] * _DEG, lon[i] * _DEG, h[i])
-
-
-@njit(cache=True)
-def _ecef2geo_loop(x: np.ndarray, y: np.ndarray, z: np.ndarray, out: np.ndarray) -> None:
-    for i in range(x.size):
-        lat, lon, h = _ecef2geo(x[i], y[i], z[i])
-        out[0, i] = lat / _DEG
-        out[1, i] = lon / _DEG
-        out[2, i] = h
 
 
 @njit(cache=True)
@@ -244,7 +329,8 @@ def ecef_to_geodetic(x_m: Any, y_m: Any, z_m: Any) -> Triple:
         return lat / _DEG, lon / _DEG, h
     shape, flat = _flat(args)
     out = np.empty((3, flat[0].size))
-    _ecef2geo_loop(flat[0], flat[1], flat[2], out)
+    flag = np.empty(flat[0].size, dtype=np.bool_)
+    _ecef2geo_fast_loop(flat[0], flat[1], flat[2], out[0], out[1], out[2], flag)
     return _unflat(out, shape)
 
 

@@ -84,6 +84,19 @@ def test_local_enu_against_cartconvert() -> None:
     assert cartconvert(pts[:1], reverse=False).shape == (1, 3)
 
 
+def test_fast_path_agrees_with_exact_kernel() -> None:
+    """The vectorised path (polynomial atan2, Halley cube root) matches the exact scalar kernel everywhere."""
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    pts = d * 10.0 ** rng.uniform(3.0, 7.7, 20000)[:, None]
+    lat, lon, h = ecef_to_geodetic(pts[:, 0], pts[:, 1], pts[:, 2])
+    exact = np.array([ecef_to_geodetic(*map(float, p)) for p in pts[::50]])
+    np.testing.assert_allclose(lat[::50], exact[:, 0], atol=1e-11)
+    np.testing.assert_allclose(lon[::50], exact[:, 1], atol=1e-11)
+    np.testing.assert_allclose(h[::50], exact[:, 2], atol=1e-7)
+
+
 def test_no_nan_at_awkward_points() -> None:
     a = 6378137.0
     pts = np.array(
@@ -120,7 +133,9 @@ def test_scalar_and_array_calls_agree_and_keep_shape() -> None:
     grid = np.array([[4e6, 1e6], [2e6, -7e6]])
     out = ecef_to_geodetic(grid, -3e6, 3.5e6)
     assert out[0].shape == (2, 2)
-    assert out[0][0, 0] == lat and out[1][0, 0] == lon and out[2][0, 0] == h
+    # arrays take the vectorised fast path, scalars the exact scalar kernel: the same to rounding
+    assert out[0][0, 0] == pytest.approx(lat, abs=1e-12) and out[1][0, 0] == pytest.approx(lon, abs=1e-12)
+    assert out[2][0, 0] == pytest.approx(h, abs=1e-8)
     x, _, _ = geodetic_to_ecef(np.float64(10.0), 20, 30.0)
     assert isinstance(x, float)
 
