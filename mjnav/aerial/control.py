@@ -180,6 +180,14 @@ class CascadeController:
     Args:
         params: the vehicle (mass, inertia, mixer).
         gains: loop gains.
+        outer: an optional `RptController` replacing the position P + velocity PID loops (its acceleration command
+            feeds the attitude loop). It is checked against the attitude loop's bandwidth with
+            `check_loop_separation` (factor ``separation_factor``).
+        separation_factor: required ratio of the attitude bandwidth to the fastest outer-loop pole.
+
+    Raises:
+        LoopSeparationError: the RPT outer loop's poles come within ``separation_factor`` of the attitude loop's
+            bandwidth.
 
     `update` takes the (17,) full state (the caller decides whether it is truth or an estimate) and returns the
     (4,) rotor-speed command in rad/s; the intermediate setpoints of the last call are kept as attributes.
@@ -187,9 +195,13 @@ class CascadeController:
 
     params: QuadrotorParams = field(default_factory=QuadrotorParams)
     gains: CascadeGains = field(default_factory=CascadeGains)
+    outer: RptController | None = None
+    separation_factor: float = 1.5
 
     def __post_init__(self) -> None:
         g = self.gains
+        if self.outer is not None:
+            check_loop_separation(rpt_poles(self.outer.gains), self.attitude_bandwidth_rad_s(), self.separation_factor)
         self.vel_pid = PID(
             g.vel_p, g.vel_i, g.vel_d, integral_limit=g.vel_integral_limit, d_cutoff_hz=5.0, output_limit=15.0
         )
@@ -212,6 +224,29 @@ class CascadeController:
         """Clear integrators and filters."""
         self.vel_pid.reset()
         self.rate_pid.reset()
+        if self.outer is not None:
+            self.outer.reset()
+
+    def attitude_bandwidth_rad_s(self, axis: int = 0) -> float:
+        """-3 dB bandwidth (rad/s) of the attitude loop (roll: axis 0, pitch: 1) on the linearised axis.
+
+        Model: angle P → rate PI (+ D on the measured rate) → torque through the first-order motor lag on
+        ``J ω̇ = τ``; states [angle, rate, torque, rate integral], input the angle setpoint.
+        """
+        g, p = self.gains, self.params
+        j, tm = p.inertia_kgm2[axis], p.motor_time_constant_s
+        ka, kp, ki, kd = g.att_p[axis], g.rate_p[axis], g.rate_i[axis], g.rate_d[axis]
+        # τ_cmd = J (kp (ka (φ_sp - φ) - ω) + i - kd ω̇),  ω̇ = τ / J,  i̇ = ki (ka (φ_sp - φ) - ω)
+        a = np.array(
+            [
+                [0.0, 1.0, 0.0, 0.0],
+                [0.0, 0.0, 1.0 / j, 0.0],
+                [-j * kp * ka / tm, -j * kp / tm, -(1.0 + kd) / tm, j / tm],
+                [-ki * ka, -ki, 0.0, 0.0],
+            ]
+        )
+        b = np.array([[0.0], [0.0], [j * kp * ka / tm], [ki * ka]])
+        return closed_loop_bandwidth(a, b, np.array([[1.0, 0.0, 0.0, 0.0]]))
 
     def update(
         self,
@@ -237,13 +272,19 @@ class CascadeController:
         g = self.gains
         x = np.asarray(state, dtype=np.float64)
         pos, vel, quat, omega = x[0:3], x[3:6], x[6:10], x[10:13]
-        v_sp = np.asarray(g.pos_p) * (np.asarray(position_sp, dtype=np.float64) - pos)
-        if velocity_ff is not None:
-            v_sp = v_sp + np.asarray(velocity_ff, dtype=np.float64)
-        v_sp = np.clip(v_sp, -g.max_speed_mps, g.max_speed_mps)
-        a_sp = self.vel_pid.update(v_sp, vel, dt)
-        if accel_ff is not None:
-            a_sp = a_sp + np.asarray(accel_ff, dtype=np.float64)
+        if self.outer is not None:
+            zero = np.zeros(3)
+            v_sp = zero if velocity_ff is None else np.asarray(velocity_ff, dtype=np.float64)
+            a_ref = zero if accel_ff is None else np.asarray(accel_ff, dtype=np.float64)
+            a_sp = self.outer.update(position_sp, v_sp, a_ref, pos, vel, dt)
+        else:
+            v_sp = np.asarray(g.pos_p) * (np.asarray(position_sp, dtype=np.float64) - pos)
+            if velocity_ff is not None:
+                v_sp = v_sp + np.asarray(velocity_ff, dtype=np.float64)
+            v_sp = np.clip(v_sp, -g.max_speed_mps, g.max_speed_mps)
+            a_sp = self.vel_pid.update(v_sp, vel, dt)
+            if accel_ff is not None:
+                a_sp = a_sp + np.asarray(accel_ff, dtype=np.float64)
         self.velocity_sp, self.accel_sp = v_sp, a_sp
         q_sp, thrust = self.attitude_from_accel(a_sp, yaw_sp, quat)
         self.attitude_sp, self.thrust_sp_n = q_sp, thrust

@@ -201,3 +201,23 @@ def test_loop_separation_check() -> None:
     assert check_loop_separation([-bw / 1.5 + 1e-9], bw) == pytest.approx(1.5)
     # a first-order loop 1/(s/5 + 1) has bandwidth 5 rad/s
     assert closed_loop_bandwidth([[-5.0]], [[5.0]], [[1.0]]) == pytest.approx(5.0, rel=1e-6)
+
+
+def test_rpt_outer_loop_flies_the_cascade_and_fast_ones_are_rejected() -> None:
+    base = CascadeController(P)
+    bw = base.attitude_bandwidth_rad_s()
+    assert 5.0 < bw < 30.0
+    ctl = CascadeController(P, outer=RptController(rpt_gains(0.5), accel_limit=6.0))
+    sp = np.array([2.0, -1.0, -1.5])
+    _, traj = _fly(ctl, P, hover_state(P), 8.0, sp, 0.0)
+    assert np.max(np.abs(traj[-250:] - sp)) < 0.02
+    # poles at 1/ε rad/s: ε = 0.1 puts them at 10 rad/s, within 1.5x of the attitude bandwidth
+    assert np.max(np.abs(rpt_poles(rpt_gains(0.1)))) * 1.5 > bw
+    with pytest.raises(LoopSeparationError):
+        CascadeController(P, outer=RptController(rpt_gains(0.1)))
+    # a stiffer attitude loop accepts the same outer loop
+    from mjnav.aerial import CascadeGains
+
+    stiff = CascadeGains(att_p=(20.0, 20.0, 3.0), rate_p=(60.0, 60.0, 10.0), rate_d=(0.5, 0.5, 0.0))
+    assert CascadeController(P, stiff).attitude_bandwidth_rad_s() > 1.5 * 10.0
+    CascadeController(P, stiff, outer=RptController(rpt_gains(0.1)))
