@@ -221,3 +221,24 @@ def test_rpt_outer_loop_flies_the_cascade_and_fast_ones_are_rejected() -> None:
     stiff = CascadeGains(att_p=(20.0, 20.0, 3.0), rate_p=(60.0, 60.0, 10.0), rate_d=(0.5, 0.5, 0.0))
     assert CascadeController(P, stiff).attitude_bandwidth_rad_s() > 1.5 * 10.0
     CascadeController(P, stiff, outer=RptController(rpt_gains(0.1)))
+
+
+def test_care_matches_scipy_on_random_systems() -> None:
+    from mjnav.aerial import care
+
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(40):
+        n, m = int(rng.integers(2, 10)), int(rng.integers(1, 4))
+        a, b = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+        q, r = np.diag(rng.uniform(0.1, 5.0, n)), np.diag(rng.uniform(0.1, 5.0, m))
+        ref = scipy.linalg.solve_continuous_are(a, b, q, r)
+        if np.linalg.cond(ref) > 1e6:
+            continue
+        x = care(a, b @ np.linalg.solve(r, b.T), q)
+        assert x is not None
+        np.testing.assert_allclose(x, ref, rtol=1e-7, atol=1e-9 * np.abs(ref).max())
+        checked += 1
+    assert checked >= 20
+    # no stabilising solution: an unstable mode the input cannot reach
+    assert care(np.diag([1.0, -1.0]), np.diag([0.0, 1.0]), np.eye(2)) is None
