@@ -443,11 +443,18 @@ def rotation_body_to_ned(roll: Any, pitch: Any, yaw: Any) -> np.ndarray:
         (3, 3) array for scalars, else S + (3, 3).
     """
     r, p, y = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (roll, pitch, yaw)))
-    flat = [np.ascontiguousarray(a).reshape(-1) for a in (r, p, y)]
-    out = np.empty((flat[0].size, 3, 3))
-    for i in range(flat[0].size):
-        _rot_zyx(flat[0][i], flat[1][i], flat[2][i], out[i])
-    return out.reshape((*r.shape, 3, 3))
+    sr, cr, sp, cp, sy, cy = np.sin(r), np.cos(r), np.sin(p), np.cos(p), np.sin(y), np.cos(y)
+    out = np.empty((*r.shape, 3, 3))
+    out[..., 0, 0] = cy * cp
+    out[..., 0, 1] = cy * sp * sr - sy * cr
+    out[..., 0, 2] = cy * sp * cr + sy * sr
+    out[..., 1, 0] = sy * cp
+    out[..., 1, 1] = sy * sp * sr + cy * cr
+    out[..., 1, 2] = sy * sp * cr - cy * sr
+    out[..., 2, 0] = -sp
+    out[..., 2, 1] = cp * sr
+    out[..., 2, 2] = cp * cr
+    return out
 
 
 def _rotate(v: Any, roll: Any, pitch: Any, yaw: Any, transpose: bool) -> np.ndarray:
