@@ -97,7 +97,8 @@ class Scheduler:
     """Cyclic executive over a task table, stepped by the caller on sim time.
 
     Args:
-        tasks: the task table; run in this order at each tick (names unique).
+        tasks: the task table (`Task` rows or (name, rate_hz, budget_us, priority) tuples); run in this order at
+            each tick (names unique).
         base_rate_hz: base tick rate, Hz; every task rate must be <= it.
         handlers: task name → callable(now_s) returning the run's simulated duration in µs (None counts as 0).
             Tasks without a handler run as no-ops taking 0 µs.
@@ -109,19 +110,20 @@ class Scheduler:
 
     def __init__(
         self,
-        tasks: Sequence[Task],
+        tasks: Sequence[Task | tuple[str, float, float, int]],
         base_rate_hz: float = 1000.0,
         handlers: Mapping[str, Handler] | None = None,
         t0_s: float = 0.0,
     ) -> None:
         if not base_rate_hz > 0.0:
             raise InvalidParameterError(f"base_rate_hz must be > 0, got {base_rate_hz}")
-        names = [t.name for t in tasks]
+        table = [t if isinstance(t, Task) else Task(*t) for t in tasks]
+        names = [t.name for t in table]
         if len(set(names)) != len(names):
             raise InvalidParameterError(f"task names must be unique, got {names}")
         base = Fraction(base_rate_hz).limit_denominator(10**6)
         self._slots: list[_Slot] = []
-        for t in tasks:
+        for t in table:
             if t.rate_hz > base_rate_hz:
                 raise InvalidParameterError(f"task {t.name}: rate {t.rate_hz} Hz exceeds the base rate {base_rate_hz}")
             ratio = Fraction(t.rate_hz).limit_denominator(10**6) / base
@@ -196,6 +198,21 @@ class Scheduler:
             raise InvalidParameterError(f"duration_s must be >= 0, got {duration_s}")
         for _ in range(round(duration_s * self.base_rate_hz)):
             self.tick()
+
+    def run(self, duration_s: float) -> None:
+        """Same as `run_for`."""
+        self.run_for(duration_s)
+
+    def run_until(self, t_end_s: float) -> None:
+        """Run every base tick whose time is before ``t_end_s`` (sim time, s)."""
+        end = self.tick_index(t_end_s)
+        while self.tick_count < end:
+            self.tick()
+
+    @property
+    def now_s(self) -> float:
+        """Sim time of the next base tick, s."""
+        return self.t0_s + self.tick_count / self.base_rate_hz
 
     def stats(self) -> dict[str, TaskStats]:
         """Task name → its counters (live objects, in execution order)."""

@@ -25,6 +25,15 @@ def test_exact_counts_over_ten_seconds() -> None:
     assert sched.skipped_releases == 0
 
 
+def test_run_until_and_tuple_rows() -> None:
+    sched = Scheduler([("IMU", 1000.0, 100.0, 2), ("CTL", 250.0, 150.0, 1)], base_rate_hz=1000.0, t0_s=2.0)
+    sched.run_until(3.0)
+    assert sched.invocations() == {"IMU": 1000, "CTL": 250}
+    assert sched.now_s == pytest.approx(3.0)
+    sched.run(0.5)
+    assert sched.invocations()["IMU"] == 1500
+
+
 def test_counts_for_rates_that_do_not_divide_the_base() -> None:
     tasks = [Task("A", 333.0, 10.0), Task("B", 7.0, 10.0), Task("C", 1000.0 / 3.0, 10.0)]
     sched = Scheduler(tasks, base_rate_hz=1000.0)
