@@ -242,3 +242,37 @@ def test_care_matches_scipy_on_random_systems() -> None:
     assert checked >= 20
     # no stabilising solution: an unstable mode the input cannot reach
     assert care(np.diag([1.0, -1.0]), np.diag([0.0, 1.0]), np.eye(2)) is None
+
+
+def test_cascade_flies_on_the_gps_ins_estimate() -> None:
+    """INS in the loop: the cascade uses GpsIns position/velocity (noisy IMU, 5 Hz GPS 150 ms late)."""
+    from mjnav.aerial import GpsIns, GpsInsConfig, quadrotor_derivative
+
+    rng = np.random.default_rng(8)
+    cfg = GpsInsConfig(imu_rate_hz=250.0)
+    dt = 1.0 / cfg.imu_rate_hz
+    ins = GpsIns(cfg, x0=np.zeros(9))
+    ctl = CascadeController(P)
+    x = hover_state(P)
+    bias = np.array([0.05, -0.03, 0.08])
+    sp = np.array([1.0, 0.5, -1.0])
+    pending: list[tuple[int, float, np.ndarray]] = []
+    est_err, pos_err = [], []
+    for k in range(round(30.0 / dt)):
+        est = x.copy()
+        est[0:6] = ins.x[0:6]
+        u = ctl.update(est, sp, 0.0, dt)
+        accel = quadrotor_derivative(x, u, P)[3:6]  # the acceleration during the next step (commands held)
+        x = quadrotor_step(x, u, dt, P)
+        ins.predict(accel + bias + rng.normal(scale=cfg.accel_noise_mps2, size=3))
+        if k % 50 == 49:
+            pending.append((k + round(0.15 / dt), ins.t_s, x[0:3] + rng.normal(scale=cfg.gps_sigma_m, size=3)))
+        while pending and pending[0][0] <= k:
+            _, stamp, fix = pending.pop(0)
+            ins.update_gps(fix, stamp_s=stamp)
+        if k * dt > 20.0:
+            est_err.append(np.linalg.norm(ins.position - x[0:3]))
+            pos_err.append(np.linalg.norm(x[0:3] - sp))
+    assert np.sqrt(np.mean(np.square(est_err))) < 0.8
+    assert np.max(pos_err) < 1.5
+    assert np.all(np.isfinite(x))
