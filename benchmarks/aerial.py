@@ -170,7 +170,7 @@ def bench_design(repeats: int) -> None:
     d12 = lqr(a12, b12, q12, r12)
     m12 = [loop_margins(a12, b12, d12.K, channel=c) for c in range(4)]
     t_scipy = best(lambda: _scipy_lqr(a12, b12, q12, r12), repeats)
-    t_hinf = best(lambda: hinf_state_feedback(a3, b3, w3, q3, r3), max(3, repeats // 10))
+    t_hinf = best(lambda: hinf_state_feedback(a3, b3, w3, q3, r3), max(10, repeats // 10))
     h = hinf_state_feedback(a3, b3, w3, q3, r3)
     mh = loop_margins(a3, b3, h.K)
 
