@@ -9,6 +9,7 @@ returns 0; a second signal kills everything at once.
 
 from __future__ import annotations
 
+import ctypes
 import json
 import logging
 import os
@@ -17,7 +18,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from types import FrameType
 from typing import IO
@@ -31,6 +32,25 @@ log = logging.getLogger("mjnav.up")
 STOP_GRACE_S = 5.0
 #: First restart delay; doubles with every restart of the same service.
 RESTART_BACKOFF_S = 0.5
+
+
+#: prctl option: the signal a process gets when its parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent_pid: int) -> Callable[[], None]:
+    """A ``preexec_fn`` that makes the child get SIGTERM when the launcher dies, however it dies (``kill -9``
+    included), so no service outlives it (Linux ``PR_SET_PDEATHSIG``; elsewhere a no-op)."""
+
+    def preexec() -> None:
+        if not sys.platform.startswith("linux"):
+            return
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != parent_pid:  # the launcher died before the request took effect
+            os._exit(1)
+
+    return preexec
 
 
 @dataclass
@@ -148,6 +168,7 @@ class Launcher:
             bufsize=1,
             env=self._env(),
             start_new_session=True,  # Ctrl-C reaches the launcher only; it stops the services in order
+            preexec_fn=_die_with_parent(os.getpid()),
         )
         child.proc = proc
         pump = threading.Thread(target=self._pump, args=(child.spec.name, proc), daemon=True)
