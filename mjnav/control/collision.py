@@ -10,7 +10,10 @@ robot can wait at the edge of an aisle for a cart to pass, or clear it at full s
 Point velocities come from two consecutive scans expressed in one fixed frame: each current point's
 displacement to the nearest previous point, per second. That sees motion along a surface's normal (a face
 approaching the robot) and not along it (the aperture problem), which is the part that matters here; speeds below
-``moving_speed_mps`` are noise and count as static.
+``moving_speed_mps`` are noise and count as static. Only points that violate the previous scan's free space can
+move (:func:`free_space_violations`: the previous beam in their direction passed beyond them): a face that came
+closer does, a wall revealed behind a corner as the robot drove on does not; and only returns from surfaces that
+face the sensor (:func:`facing_returns`): a wall seen at a grazing angle seems to slide along itself.
 
 :func:`safe_command` picks, among the pursuit command and slower, faster (up to ``max_speed_mps``) or stopped
 versions of it on the same curvature, the first that is collision-free, or else the one whose collision is
@@ -94,14 +97,16 @@ def point_velocities(
     min_speed_mps: float,
     max_speed_mps: float = 1.5,
     neighbours: int = 5,
+    can_move: ArrayLike | None = None,
 ) -> FloatArray:
     """(M, 2) velocity of each current point: displacement from its nearest previous point per second, as the
     component-wise median over the point and its ``neighbours - 1`` nearest current neighbours.
 
     Both point sets must be in one fixed frame. The median keeps a surface's common motion and drops lone jumps;
     speeds below ``min_speed_mps`` (noise, motion along a surface) and above ``max_speed_mps`` (a point that
-    appeared from behind an edge as the robot moved, not an obstacle that moved) count as static, zero. With no
-    previous points every velocity is zero.
+    appeared from behind an edge as the robot moved, not an obstacle that moved) count as static, zero, and so do
+    points where ``can_move`` (M,) is False (see :func:`free_space_violations`). With no previous points every
+    velocity is zero.
     """
     p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
     q = np.asarray(previous_xy, dtype=np.float64).reshape(-1, 2)
@@ -115,7 +120,66 @@ def point_velocities(
         raw = np.median(raw[near], axis=1)
     speed = np.hypot(raw[:, 0], raw[:, 1])
     raw[(speed < min_speed_mps) | (speed > max_speed_mps)] = 0.0
+    if can_move is not None:
+        raw[~np.asarray(can_move, dtype=bool)] = 0.0
     return raw
+
+
+def facing_returns(points_xy: ArrayLike, max_gap_m: float = 0.3, min_incidence_rad: float = 0.35) -> NDArray[np.bool_]:
+    """(M,) True for the returns of a scan whose surface faces the sensor: the beam meets the local surface (the
+    line through the neighbouring returns, both within ``max_gap_m``) at more than ``min_incidence_rad``.
+
+    Grazing returns (a wall seen along its length) and isolated or edge returns slide along their surface from one
+    scan to the next as the robot moves: their apparent motion is not an obstacle's.
+
+    Args:
+        points_xy: (M, 2) the scan's valid returns in the sensor frame, in beam order, metres.
+    """
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    out = np.zeros(len(p), dtype=bool)
+    if len(p) < 3:
+        return out
+    prev, nxt = p[:-2], p[2:]
+    mid = p[1:-1]
+    tangent = nxt - prev
+    gaps_ok = (np.hypot(*(mid - prev).T) <= max_gap_m) & (np.hypot(*(nxt - mid).T) <= max_gap_m)
+    cross = np.abs(tangent[:, 0] * mid[:, 1] - tangent[:, 1] * mid[:, 0])
+    norms = np.hypot(*tangent.T) * np.hypot(*mid.T)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out[1:-1] = gaps_ok & (cross > np.sin(min_incidence_rad) * norms)
+    return out
+
+
+def free_space_violations(
+    points_xy: ArrayLike,
+    previous_pose: tuple[float, float, float],
+    angle_min_rad: float,
+    angle_increment_rad: float,
+    previous_ranges_m: ArrayLike,
+    tolerance_m: float = 0.05,
+) -> NDArray[np.bool_]:
+    """(M,) True where a point lies in space the previous scan saw free: its beam passed beyond the point.
+
+    Args:
+        points_xy: (M, 2) current points in the fixed frame, metres.
+        previous_pose: (x, y, θ) of the previous scan's sensor in that frame.
+        angle_min_rad, angle_increment_rad: the previous scan's beam angles.
+        previous_ranges_m: (N,) its ranges; non-finite ranges (no return) saw free space to the horizon.
+        tolerance_m: how much nearer than the previous return a point must be (noise), metres.
+    """
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    r = np.asarray(previous_ranges_m, dtype=np.float64)
+    x0, y0, th = previous_pose
+    dx, dy = p[:, 0] - x0, p[:, 1] - y0
+    rho = np.hypot(dx, dy)
+    beam = np.arctan2(dy, dx) - th
+    idx = np.rint(np.mod(beam - angle_min_rad, 2.0 * np.pi) / angle_increment_rad).astype(np.int64)
+    if len(r) and abs(len(r) * angle_increment_rad - 2.0 * np.pi) < angle_increment_rad:
+        idx %= len(r)  # a full circle: the last beam's neighbour is the first
+    inside = (idx >= 0) & (idx < len(r))
+    seen = np.where(inside, r[np.clip(idx, 0, max(len(r) - 1, 0))], -np.inf) if len(r) else np.full(len(p), -np.inf)
+    seen = np.where(np.isfinite(seen) | ~inside, seen, np.inf)
+    return np.asarray(seen > rho + tolerance_m)
 
 
 def _arc(v_mps: float, omega_radps: float, t: FloatArray) -> FloatArray:

@@ -17,14 +17,25 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+from scipy.ndimage import maximum_filter
 
 from mjnav.control import PathError, PurePursuit, PurePursuitParams, nearest_obstacle_ahead
-from mjnav.control.collision import CollisionCheckParams, point_velocities, safe_command, scan_points
+from mjnav.control.collision import (
+    CollisionCheckParams,
+    facing_returns,
+    free_space_violations,
+    point_velocities,
+    safe_command,
+    scan_points,
+)
 from mjnav.geometry import Pose2D, PoseHistory
+from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
+#: Map value (occupancy probability, %) from which a cell counts as a wall for the collision check.
+OCCUPIED = 65
 
 
 @dataclass(frozen=True)
@@ -105,6 +116,20 @@ class ControllerConfig:
         )
 
 
+@dataclass(frozen=True)
+class _ScanObstacles:
+    """A scan as the collision check uses it: stamp, sensor pose (map), beams, and its valid returns in the map
+    frame with their velocities."""
+
+    stamp: float
+    pose: tuple[float, float, float]
+    angle_min: float
+    angle_increment: float
+    ranges: Any
+    points: Any
+    velocities: Any
+
+
 class ControllerService(Service[ControllerConfig]):
     """Follows the smoothed path with pure pursuit."""
 
@@ -117,6 +142,7 @@ class ControllerService(Service[ControllerConfig]):
         self.path_sub = self.bus.subscribe("path")
         self.pose_sub = self.bus.subscribe(self.config.pose_source, callback=self._on_pose)
         self.scan_sub = self.bus.subscribe("scan")
+        self.map_sub = self.bus.subscribe("map")
         self.status_sub = self.bus.subscribe("goal_status")
         self.cmd_pub = self.bus.publisher("cmd_vel")
         self.status_pub = self.bus.publisher("goal_status")
@@ -141,8 +167,8 @@ class ControllerService(Service[ControllerConfig]):
         self.pursuit.reset()
         self.poses = PoseHistory(horizon_s=2.0)
         self.pending.clear()
-        # The newest scan's valid returns and their velocities in the map frame, and its stamp.
-        self.obstacles: tuple[float, Any, Any] | None = None
+        self.obstacles: _ScanObstacles | None = None  # the newest scan, fused
+        self.walls: tuple[GridFrame, Any] | None = None  # the map's occupied cells, grown by one cell
 
     def _on_pose(self, msg: Any) -> None:
         pose = msg.pose.pose if self.config.pose_source == "odom" else msg.pose
@@ -159,28 +185,54 @@ class ControllerService(Service[ControllerConfig]):
         pose = self.poses.at(stamp)
         if pose is None:
             return
-        angles = scan.angle_min + scan.angle_increment * np.arange(len(scan.ranges))
-        points = pose.transform_points(scan_points(angles, scan.ranges, scan.range_min, scan.range_max))
-        if self.obstacles is not None and 0 < stamp - self.obstacles[0] <= 0.5:
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+        local = scan_points(angles, ranges, scan.range_min, scan.range_max)
+        points = pose.transform_points(local)
+        velocities = np.zeros_like(points)
+        prev = self.obstacles
+        if prev is not None and 0 < stamp - prev.stamp <= 0.5:
+            can_move = free_space_violations(points, prev.pose, prev.angle_min, prev.angle_increment, prev.ranges)
+            can_move &= facing_returns(local) & ~self._on_walls(points)
             velocities = point_velocities(
-                points, self.obstacles[1], stamp - self.obstacles[0], self.collision.moving_speed_mps
+                points, prev.points, stamp - prev.stamp, self.collision.moving_speed_mps, can_move=can_move
             )
-        else:
-            velocities = np.zeros_like(points)
-        self.obstacles = (stamp, points, velocities)
+        self.obstacles = _ScanObstacles(
+            stamp, (pose.x, pose.y, pose.theta), float(scan.angle_min), float(scan.angle_increment), ranges, points,
+            velocities,
+        )  # fmt: skip
+
+    def _on_walls(self, points: Any) -> Any:
+        """(M,) True for points on (or next to) a cell the map has as occupied: static, whatever two scans say."""
+        msg = self.map_sub.take()
+        if msg is not None:
+            cells, res, origin = ros.grid_cells(msg)
+            frame = GridFrame(res, (origin.x, origin.y), cells.shape, origin.theta)
+            self.walls = (frame, maximum_filter(cells >= OCCUPIED, size=3))
+        if self.walls is None:
+            return np.zeros(len(points), dtype=bool)
+        frame, walls = self.walls
+        idx = frame.world_to_cells(points)
+        inside = (idx[:, 0] >= 0) & (idx[:, 0] < walls.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < walls.shape[1])
+        out = np.zeros(len(points), dtype=bool)
+        out[inside] = walls[idx[inside, 0], idx[inside, 1]]
+        return out
 
     def _checked(self, pose: Pose2D, v: float, w: float) -> tuple[float, float]:
         """(v, ω) after the collision check against the newest scan (unchanged without one)."""
         if self.obstacles is None:
             return v, w
-        _, points, velocities = self.obstacles
-        inverse = pose.inverse()
-        local = inverse.transform_points(points)
+        points, velocities = self.obstacles.points, self.obstacles.velocities
+        local = pose.inverse().transform_points(points)
         c, s = math.cos(pose.theta), math.sin(pose.theta)
         local_vel = velocities @ np.array([[c, -s], [s, c]])  # rotate map-frame velocities into the robot frame
         safe_v, safe_w, ttc = safe_command(v, w, local, local_vel, self.collision)
         if (safe_v, safe_w) != (v, w):
-            self.log.debug("collision check: (%.2f, %.2f) -> (%.2f, %.2f), ttc %.2f s", v, w, safe_v, safe_w, ttc)
+            moving = np.any(velocities != 0.0, axis=1)
+            self.log.debug(
+                "collision check: (%.2f, %.2f) -> (%.2f, %.2f), ttc %.2f s, %d moving point(s) %s",
+                v, w, safe_v, safe_w, ttc, int(moving.sum()), np.round(points[moving][:3], 2).tolist(),
+            )  # fmt: skip
         return safe_v, safe_w
 
     def _stop(self, reason: str) -> None:

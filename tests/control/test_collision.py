@@ -10,6 +10,8 @@ import pytest
 
 from mjnav.control.collision import (
     CollisionCheckParams,
+    facing_returns,
+    free_space_violations,
     point_velocities,
     safe_command,
     scan_points,
@@ -96,3 +98,30 @@ def test_params_are_checked() -> None:
         CollisionCheckParams(robot_radius_m=0.0)
     with pytest.raises(ValueError):
         CollisionCheckParams(static_horizon_s=2.0, moving_horizon_s=1.0)
+
+
+def test_free_space_violations_tell_an_approaching_face_from_a_revealed_wall() -> None:
+    # The previous scan, from (1, 0) facing +y, saw a wall 2 m away all round, and nothing at all straight behind.
+    n = 360
+    ranges = np.full(n, 2.0)
+    angles = -math.pi + 2 * math.pi / n * np.arange(n)
+    ranges[np.argmin(np.abs(angles - math.pi / 2))] = math.inf  # no return towards -x in the world (beam +90°)
+    pose = (1.0, 0.0, math.pi / 2)
+    points = np.array([[1.0, 1.5], [1.0, 2.5], [1.0, 2.02], [-0.5, 0.0], [3.5, 0.0], [-2.0, 0.0]])
+    got = free_space_violations(points, pose, -math.pi, 2 * math.pi / n, ranges)
+    # nearer than the return: violates; behind it, or within the tolerance: does not; where the previous beam saw
+    # no return, anything violates.
+    assert got.tolist() == [True, False, False, True, False, True]
+    # Velocities only where free space was violated.
+    vel = point_velocities(points, points - [0.0, -0.1], 0.1, 0.25, neighbours=1, can_move=got)
+    assert (vel[:, 1] != 0).tolist() == got.tolist()
+
+
+def test_grazing_and_edge_returns_do_not_count_as_facing() -> None:
+    # A wall at x = 1 seen from the origin: facing near the axis, grazing far along it; an isolated return is an edge.
+    y = np.linspace(-6.0, 6.0, 121)
+    wall = np.column_stack((np.full_like(y, 1.0), y))
+    facing = facing_returns(np.vstack((wall, [[5.0, 0.0]])), max_gap_m=0.3, min_incidence_rad=0.35)
+    assert facing[60] and not facing[0] and not facing[-1]  # the ends have one neighbour only
+    assert not facing[5]  # at y = -5.5 the beam meets the wall at about 10°
+    assert not facing[-1]
