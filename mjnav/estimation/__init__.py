@@ -1,0 +1,17 @@
+"""State estimation (pure): Kalman filters, EKF-SLAM, FastSLAM, data association.
+
+Arrays are float64 numpy arrays in SI units (metres, radians, seconds); failures raise
+:class:`~mjnav.estimation.errors.EstimationError` subclasses.
+"""
+
+from mjnav.estimation.errors import EstimationError, InvalidMeasurement, InvalidModel, NotPositiveDefinite
+from mjnav.estimation.kalman import ExtendedKalmanFilter, KalmanFilter
+
+__all__ = [
+    "EstimationError",
+    "ExtendedKalmanFilter",
+    "InvalidMeasurement",
+    "InvalidModel",
+    "KalmanFilter",
+    "NotPositiveDefinite",
+]
