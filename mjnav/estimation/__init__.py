@@ -4,14 +4,22 @@ Arrays are float64 numpy arrays in SI units (metres, radians, seconds); failures
 :class:`~mjnav.estimation.errors.EstimationError` subclasses.
 """
 
+from mjnav.estimation.association import Association, chi2_gate, jcbb, nearest_neighbor, pairwise_mahalanobis
+from mjnav.estimation.ekf_slam import EKFSLAM
 from mjnav.estimation.errors import EstimationError, InvalidMeasurement, InvalidModel, NotPositiveDefinite
 from mjnav.estimation.kalman import ExtendedKalmanFilter, KalmanFilter
 
 __all__ = [
+    "EKFSLAM",
+    "Association",
     "EstimationError",
     "ExtendedKalmanFilter",
     "InvalidMeasurement",
     "InvalidModel",
     "KalmanFilter",
     "NotPositiveDefinite",
+    "chi2_gate",
+    "jcbb",
+    "nearest_neighbor",
+    "pairwise_mahalanobis",
 ]
