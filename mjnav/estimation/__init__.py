@@ -7,6 +7,7 @@ Arrays are float64 numpy arrays in SI units (metres, radians, seconds); failures
 from mjnav.estimation.association import Association, chi2_gate, jcbb, nearest_neighbor, pairwise_mahalanobis
 from mjnav.estimation.ekf_slam import EKFSLAM
 from mjnav.estimation.errors import EstimationError, InvalidMeasurement, InvalidModel, NotPositiveDefinite
+from mjnav.estimation.fastslam import FastSLAM
 from mjnav.estimation.kalman import ExtendedKalmanFilter, KalmanFilter
 
 __all__ = [
@@ -14,6 +15,7 @@ __all__ = [
     "Association",
     "EstimationError",
     "ExtendedKalmanFilter",
+    "FastSLAM",
     "InvalidMeasurement",
     "InvalidModel",
     "KalmanFilter",
