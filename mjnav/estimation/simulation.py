@@ -222,10 +222,16 @@ class SlamScore:
 
 
 def pose_nees(true_pose: ArrayLike, pose: ArrayLike, covariance: ArrayLike) -> float:
-    """Normalised estimation error squared of a pose (heading difference wrapped)."""
+    """Normalised estimation error squared of a pose (heading difference wrapped); inf for a singular covariance
+    (e.g. a particle cloud collapsed onto one pose)."""
     e = np.asarray(true_pose, dtype=np.float64) - np.asarray(pose, dtype=np.float64)
     e[2] = (e[2] + math.pi) % (2.0 * math.pi) - math.pi
-    return float(e @ np.linalg.solve(np.asarray(covariance, dtype=np.float64), e))
+    try:
+        L = np.linalg.cholesky(np.asarray(covariance, dtype=np.float64))
+    except np.linalg.LinAlgError:
+        return math.inf
+    w = np.linalg.solve(L, e)
+    return float(w @ w)
 
 
 def nees_bounds(dof: int, runs: int, probability: float = 0.95) -> tuple[float, float]:
