@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from mjnav.estimation._models import inverse_range_bearing, range_bearing, velocity_jacobians
 from mjnav.estimation.association import Association, chi2_gate, jcbb, nearest_neighbor, pairwise_mahalanobis
 from mjnav.estimation.errors import InvalidMeasurement, InvalidModel, NotPositiveDefinite
+from mjnav.estimation.simulation import LOOP_WORLD_ALPHAS, LOOP_WORLD_BEARING_STD_RAD, LOOP_WORLD_RANGE_STD_M
 from mjnav.geometry import wrap_angle, wrap_angles
 from mjnav.motion import velocity_motion
 
@@ -69,9 +70,9 @@ class EKFSLAM:
 
     Args:
         motion_alphas: (α1..α6) velocity motion-model noise (4 values: α5 = α6 = 0), as in
-            :func:`mjnav.motion.sample_velocity_motion`.
-        range_std_m: range noise σ_r, metres.
-        bearing_std_rad: bearing noise σ_φ, radians.
+            :func:`mjnav.motion.sample_velocity_motion` (default: the documented loop-world noise).
+        range_std_m: range noise σ_r, metres (default 0.1).
+        bearing_std_rad: bearing noise σ_φ, radians (default 0.02).
         initial_pose: (3,) start pose (x m, y m, θ rad).
         initial_covariance: (3, 3) start pose covariance (default zeros: the start pose defines the map frame).
         association: ``"nn"`` (greedy nearest neighbour) or ``"jcbb"`` (joint compatibility branch and bound).
@@ -89,9 +90,9 @@ class EKFSLAM:
 
     def __init__(
         self,
-        motion_alphas: ArrayLike,
-        range_std_m: float,
-        bearing_std_rad: float,
+        motion_alphas: ArrayLike = LOOP_WORLD_ALPHAS,
+        range_std_m: float = LOOP_WORLD_RANGE_STD_M,
+        bearing_std_rad: float = LOOP_WORLD_BEARING_STD_RAD,
         *,
         initial_pose: ArrayLike = (0.0, 0.0, 0.0),
         initial_covariance: ArrayLike | None = None,

@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from mjnav.estimation.association import Association, chi2_gate
 from mjnav.estimation.ekf_slam import check_motion_alphas, empty_association, observations_array
 from mjnav.estimation.errors import InvalidModel
+from mjnav.estimation.simulation import LOOP_WORLD_ALPHAS, LOOP_WORLD_BEARING_STD_RAD, LOOP_WORLD_RANGE_STD_M
 from mjnav.motion import sample_velocity_motion
 
 FloatArray = NDArray[np.float64]
@@ -220,10 +221,12 @@ class FastSLAM:
     """FastSLAM 1.0 with range-bearing observations and unknown correspondences.
 
     Args:
-        motion_alphas: (α1..α6) velocity motion-model noise (4 values: α5 = α6 = 0).
-        range_std_m: range noise σ_r, metres.
-        bearing_std_rad: bearing noise σ_φ, radians.
-        rng: random generator (motion sampling and resampling); seed it for repeatable runs.
+        motion_alphas: (α1..α6) velocity motion-model noise (4 values: α5 = α6 = 0); default: the documented
+            loop-world noise.
+        range_std_m: range noise σ_r, metres (default 0.1).
+        bearing_std_rad: bearing noise σ_φ, radians (default 0.02).
+        rng: random generator for motion sampling and resampling, or an int seed; None means seed 0, so runs are
+            always repeatable.
         num_particles: N.
         initial_pose: (3,) start pose.
         initial_covariance: (3, 3) start pose covariance the particles are drawn from (default zeros).
@@ -240,11 +243,11 @@ class FastSLAM:
 
     def __init__(
         self,
-        motion_alphas: ArrayLike,
-        range_std_m: float,
-        bearing_std_rad: float,
+        motion_alphas: ArrayLike = LOOP_WORLD_ALPHAS,
+        range_std_m: float = LOOP_WORLD_RANGE_STD_M,
+        bearing_std_rad: float = LOOP_WORLD_BEARING_STD_RAD,
         *,
-        rng: np.random.Generator,
+        rng: np.random.Generator | int | None = None,
         num_particles: int = 100,
         initial_pose: ArrayLike = (0.0, 0.0, 0.0),
         initial_covariance: ArrayLike | None = None,
@@ -261,6 +264,10 @@ class FastSLAM:
             raise InvalidModel("new_landmark_probability must be >= gate_probability")
         if not 0.0 <= resample_threshold <= 1.0:
             raise InvalidModel(f"resample_threshold must be in [0, 1], got {resample_threshold}")
+        if rng is None or isinstance(rng, int):
+            rng = np.random.default_rng(0 if rng is None else rng)
+        if not isinstance(rng, np.random.Generator):
+            raise InvalidModel(f"rng must be a numpy Generator or an int seed, got {type(rng).__name__}")
         self.rng = rng
         self.R = np.diag([range_std_m**2, bearing_std_rad**2])
         self.gate = chi2_gate(gate_probability, 2)

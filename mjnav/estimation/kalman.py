@@ -192,9 +192,10 @@ def _kf_update_kernel(
 
 
 def _matrix(a: ArrayLike, shape: tuple[int, int], name: str) -> FloatArray:
-    m = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+    m = np.asarray(a, dtype=np.float64)
     if m.ndim == 0 and shape[0] == shape[1]:
-        m = np.eye(shape[0]) * float(m)
+        m = np.eye(shape[0]) * float(m)  # a scalar covariance q means q·I
+    m = np.ascontiguousarray(m)
     if m.shape != shape:
         raise InvalidModel(f"{name} must have shape {shape}, got {m.shape}")
     if not np.isfinite(m).all():
@@ -239,6 +240,16 @@ class _GaussianState:
         """Normalised innovation squared νᵀ S⁻¹ ν of the last update (χ² with m dof for a consistent filter)."""
         self.log_likelihood: float = math.nan
         """log N(ν; 0, S) of the last update."""
+
+    @property
+    def likelihood(self) -> float:
+        """N(ν; 0, S) of the last update (exp of :attr:`log_likelihood`)."""
+        return math.exp(self.log_likelihood)
+
+    @property
+    def mahalanobis(self) -> float:
+        """Mahalanobis distance √NIS of the last innovation."""
+        return math.sqrt(self.nis)
 
     @property
     def dim_x(self) -> int:
@@ -305,8 +316,8 @@ class KalmanFilter(_GaussianState):
         *,
         joseph: bool = False,
     ) -> None:
-        Fm = np.asarray(F, dtype=np.float64)
-        Hm = np.asarray(H, dtype=np.float64)
+        Fm = np.atleast_2d(np.asarray(F, dtype=np.float64))  # a scalar F is a 1-state model
+        Hm = np.atleast_2d(np.asarray(H, dtype=np.float64))  # a 1-D H is one measurement row
         if Fm.ndim != 2 or Fm.shape[0] != Fm.shape[1] or Fm.shape[0] == 0:
             raise InvalidModel(f"F must be a square (n, n) matrix, got shape {Fm.shape}")
         n = Fm.shape[0]

@@ -118,3 +118,10 @@ def test_jcbb_association_on_the_loop_world() -> None:
     total = sum(s.total for s in scores)
     assert sum(s.correct for s in scores) / total >= 0.99
     assert float(np.mean([s.nees.mean() for s in scores])) < 6.0
+
+
+def test_defaults_are_the_documented_noise() -> None:
+    slam = EKFSLAM()
+    assert np.allclose(slam.alphas, LOOP_WORLD_ALPHAS)
+    assert np.allclose(slam.R, np.diag([LOOP_WORLD_RANGE_STD_M**2, LOOP_WORLD_BEARING_STD_RAD**2]))
+    assert slam.pose.tolist() == [0.0, 0.0, 0.0] and slam.covariance.shape == (3, 3)

@@ -158,3 +158,12 @@ def test_associations_on_the_full_loop_at_the_documented_noise() -> None:
     ]
     total = sum(s.total for s in scores)
     assert sum(s.correct for s in scores) / total >= 0.99
+
+
+def test_default_rng_is_seeded() -> None:
+    a, b, c = FastSLAM(), FastSLAM(rng=0), FastSLAM(rng=1)
+    for f in (a, b, c):
+        f.predict(1.0, 0.2, 0.5)
+    assert np.array_equal(a.particles, b.particles) and not np.array_equal(a.particles, c.particles)
+    with pytest.raises(InvalidModel):
+        FastSLAM(rng="seed")  # type: ignore[arg-type]

@@ -196,3 +196,17 @@ def test_ekf_range_bearing_update_linearises_at_the_prior_and_wraps_bearing() ->
     assert abs(nu[1]) < 0.05
     assert np.allclose(ekf.x, x0 + P0 @ H.T @ np.linalg.solve(S, nu), atol=1e-12)
     assert ekf.x[0] < -5.05  # moved outwards along the range
+
+
+def test_scalar_model_and_derived_quantities() -> None:
+    """A 1-state filter from scalars: predict P = 1 + 0.1, S = 1.6, K = 0.6875."""
+    kf = KalmanFilter(1.0, 1.0, 0.1, 0.5)
+    kf.predict()
+    kf.update(2.0)
+    assert kf.x.tolist() == pytest.approx([1.375]) and kf.P[0, 0] == pytest.approx(0.34375)
+    assert kf.K[0, 0] == pytest.approx(0.6875) and kf.S[0, 0] == pytest.approx(1.6)
+    assert kf.mahalanobis == pytest.approx(2.0 / math.sqrt(1.6))
+    assert kf.likelihood == pytest.approx(math.exp(-0.5 * 4.0 / 1.6) / math.sqrt(2 * math.pi * 1.6))
+    row = KalmanFilter(np.eye(2), [1.0, 0.0], 0.1, 0.5)  # a 1-D H is one measurement row
+    row.update(1.0)
+    assert row.x == pytest.approx([2.0 / 3.0, 0.0])
