@@ -25,6 +25,7 @@ import math
 from typing import Literal
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from mjnav.estimation._models import inverse_range_bearing, range_bearing, velocity_jacobians
@@ -36,6 +37,87 @@ from mjnav.motion import velocity_motion
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+
+
+@njit(cache=True)
+def _sparse_joint_update(
+    x: FloatArray, P: FloatArray, Hs: FloatArray, idx: IntArray, nu: FloatArray, R: FloatArray
+) -> tuple[FloatArray, FloatArray, bool]:
+    """One EKF update with p stacked range-bearing measurements whose Jacobian rows are sparse.
+
+    Row pair i of H has the entries Hs[i] (2 × 5) on the state columns idx[i] (pose and landmark). With
+    S = H P Hᵀ + blockdiag(R) = L Lᵀ and W = P Hᵀ L⁻ᵀ: x += W L⁻¹ ν and P −= W Wᵀ (the K S Kᵀ form), symmetric.
+    Single-threaded loops: no BLAS thread start-up on small, busy problems. ok is False when S is not PD.
+    """
+    n = x.shape[0]
+    p = Hs.shape[0]
+    m = 2 * p
+    PHt = np.zeros((n, m))
+    for i in range(p):
+        for a in range(2):
+            col = 2 * i + a
+            for c in range(5):
+                h = Hs[i, a, c]
+                if h != 0.0:
+                    jc = idx[i, c]
+                    for r in range(n):
+                        PHt[r, col] += P[r, jc] * h
+    S = np.zeros((m, m))
+    for i in range(p):
+        for a in range(2):
+            row = 2 * i + a
+            for c in range(5):
+                h = Hs[i, a, c]
+                if h != 0.0:
+                    jc = idx[i, c]
+                    for col in range(m):
+                        S[row, col] += h * PHt[jc, col]
+        for a in range(2):
+            for b in range(2):
+                S[2 * i + a, 2 * i + b] += R[a, b]
+    L = np.zeros((m, m))
+    for j in range(m):
+        d = 0.5 * (S[j, j] + S[j, j])
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            return x, P, False
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, m):
+            v = 0.5 * (S[i, j] + S[j, i])
+            for k in range(j):
+                v -= L[i, k] * L[j, k]
+            L[i, j] = v / L[j, j]
+    # w = L⁻¹ ν; W rows solve L W[r]ᵀ = PHt[r]ᵀ
+    w = np.empty(m)
+    for i in range(m):
+        v = nu[i]
+        for k in range(i):
+            v -= L[i, k] * w[k]
+        w[i] = v / L[i, i]
+    W = np.empty((n, m))
+    for r in range(n):
+        for i in range(m):
+            v = PHt[r, i]
+            for k in range(i):
+                v -= L[i, k] * W[r, k]
+            W[r, i] = v / L[i, i]
+    xn = x.copy()
+    for r in range(n):
+        v = 0.0
+        for i in range(m):
+            v += W[r, i] * w[i]
+        xn[r] += v
+    Pn = np.empty((n, n))
+    for r in range(n):
+        for c in range(r, n):
+            v = 0.0
+            for i in range(m):
+                v += W[r, i] * W[c, i]
+            e = 0.5 * (P[r, c] + P[c, r]) - v
+            Pn[r, c] = e
+            Pn[c, r] = e
+    return xn, Pn, True
 
 
 def check_motion_alphas(alphas: ArrayLike) -> FloatArray:
@@ -269,26 +351,15 @@ class EKFSLAM:
         return self.last_association
 
     def _stacked_update(self, Z: FloatArray, zp: FloatArray, Hs: FloatArray, idx: IntArray) -> None:
-        p = Z.shape[0]
-        n = self._x.shape[0]
         nu = Z - zp
         nu[:, 1] = wrap_angles(nu[:, 1])
-        H = np.zeros((2 * p, n))
-        rows = np.arange(2 * p).reshape(p, 2)
-        H[rows[:, :, None], idx[:, None, :]] = Hs
-        PHt = self._P @ H.T
-        S = H @ PHt + np.kron(np.eye(p), self.R)
-        try:
-            # S is small (2p × 2p): an explicit inverse from its Cholesky factor is cheaper than a triangular solve
-            # with n right-hand sides, which OpenBLAS threads badly on a busy machine.
-            Li = np.linalg.inv(np.linalg.cholesky(S))
-        except np.linalg.LinAlgError as e:
-            raise NotPositiveDefinite("stacked innovation covariance S") from e
-        W = PHt @ Li.T  # P Hᵀ L⁻ᵀ, so K = W L⁻¹ and K S Kᵀ = W Wᵀ
-        self._x = self._x + W @ (Li @ nu.reshape(-1))
-        self._x[2] = wrap_angle(float(self._x[2]))
-        P = self._P - W @ W.T
-        self._P = 0.5 * (P + P.T)
+        x, P, ok = _sparse_joint_update(
+            self._x, self._P, np.ascontiguousarray(Hs), np.ascontiguousarray(idx), nu.reshape(-1), self.R
+        )
+        if not ok:
+            raise NotPositiveDefinite("stacked innovation covariance S")
+        x[2] = wrap_angle(float(x[2]))
+        self._x, self._P = x, P
 
     def _add_landmarks(self, Z: FloatArray) -> None:
         k = Z.shape[0]

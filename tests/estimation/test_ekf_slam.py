@@ -125,3 +125,27 @@ def test_defaults_are_the_documented_noise() -> None:
     assert np.allclose(slam.alphas, LOOP_WORLD_ALPHAS)
     assert np.allclose(slam.R, np.diag([LOOP_WORLD_RANGE_STD_M**2, LOOP_WORLD_BEARING_STD_RAD**2]))
     assert slam.pose.tolist() == [0.0, 0.0, 0.0] and slam.covariance.shape == (3, 3)
+
+
+def test_sparse_joint_update_equals_the_dense_kalman_update() -> None:
+    from mjnav.estimation.ekf_slam import _sparse_joint_update
+
+    rng = np.random.default_rng(4)
+    n, p = 11, 3
+    A = rng.normal(size=(n, n))
+    P = A @ A.T + np.eye(n)
+    x = rng.normal(size=n)
+    idx = np.array([[0, 1, 2, 3, 4], [0, 1, 2, 7, 8], [0, 1, 2, 9, 10]])
+    Hs = rng.normal(size=(p, 2, 5))
+    R = np.diag([0.04, 0.001])
+    nu = rng.normal(size=2 * p)
+    H = np.zeros((2 * p, n))
+    for i in range(p):
+        H[2 * i : 2 * i + 2, idx[i]] = Hs[i]
+    S = H @ P @ H.T + np.kron(np.eye(p), R)
+    K = P @ H.T @ np.linalg.inv(S)
+    xn, Pn, ok = _sparse_joint_update(x, P, Hs, idx, nu, R)
+    assert ok
+    assert np.allclose(xn, x + K @ nu, atol=1e-10)
+    assert np.allclose(Pn, (np.eye(n) - K @ H) @ P, atol=1e-10)
+    assert not _sparse_joint_update(x, P, Hs, idx, nu, -10.0 * np.eye(2) * P.max())[2]
