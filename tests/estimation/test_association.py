@@ -81,3 +81,16 @@ def test_jcbb_leaves_an_outlier_unpaired_and_respects_order() -> None:
     assert jcbb(z, zp, H, P, R).tolist() == [2, 0, -1, 3, 1]
     assert jcbb(np.zeros((0, 2)), zp, H, P, R).tolist() == []
     assert jcbb(z, np.zeros((0, 2)), np.zeros((0, 2, 2)), P, R).tolist() == [-1] * 5
+
+
+def test_jcbb_rejects_an_individually_compatible_but_jointly_inconsistent_pair() -> None:
+    """Irregular landmarks 0..2 seen shifted by +0.6 m (the pose error); a spurious return 0.5 m left of landmark 3's
+    prediction is individually compatible with it, but not with the common shift the other three imply."""
+    _, _, H, P, R = _row_of_landmarks()
+    lms = np.array([[0.0, 0.0], [1.0, 0.0], [2.3, 0.0], [3.9, 0.0]])
+    zp = lms.copy()  # estimated robot at the origin
+    shift = np.array([0.6, 0.0])
+    z = np.vstack([lms[:3] + shift, zp[3] - np.array([0.5, 0.0])])
+    S = H @ P @ H.transpose(0, 2, 1) + R
+    assert pairwise_mahalanobis(z, zp, S)[3, 3] < chi2_gate(0.99, 2)
+    assert jcbb(z, zp, H, P, R).tolist() == [0, 1, 2, -1]
