@@ -71,13 +71,17 @@ def _update_particles(
     K = Z.shape[0]
     loglik = np.zeros(N)
     r00, r01, r11 = R[0, 0], R[0, 1], R[1, 1]
+    cap = mu.shape[1]
+    zp = np.empty((cap, 2))  # work arrays shared by all particles (first M rows used)
+    H = np.empty((cap, 2, 2))
+    Si = np.empty((cap, 3))  # inverse S as (a, b, c) of [[a, b], [b, c]]
+    ldet = np.empty(cap)
+    d2 = np.empty((K, cap))
+    a = np.empty(K, dtype=np.int64)
+    used = np.empty(cap, dtype=np.bool_)
     for p in range(N):
         px, py, pth = poses[p, 0], poses[p, 1], poses[p, 2]
         M = count[p]
-        zp = np.empty((M, 2))
-        H = np.empty((M, 2, 2))
-        Si = np.empty((M, 3))  # inverse S as (a, b, c) of [[a, b], [b, c]]
-        ldet = np.empty(M)
         for j in range(M):
             dx = mu[p, j, 0] - px
             dy = mu[p, j, 1] - py
@@ -104,15 +108,14 @@ def _update_particles(
             Si[j, 1] = -s01 / det
             Si[j, 2] = s00 / det
             ldet[j] = math.log(det)
-        d2 = np.empty((K, M))
         for k in range(K):
             for j in range(M):
                 n0 = Z[k, 0] - zp[j, 0]
                 n1 = _wrap(Z[k, 1] - zp[j, 1])
                 d2[k, j] = Si[j, 0] * n0 * n0 + 2.0 * Si[j, 1] * n0 * n1 + Si[j, 2] * n1 * n1
         # greedy one-to-one nearest neighbour inside the gate
-        a = np.full(K, -1, dtype=np.int64)
-        used = np.zeros(M, dtype=np.bool_)
+        a[:] = -1
+        used[:M] = False
         for _ in range(min(K, M)):
             best = gate
             bk = -1

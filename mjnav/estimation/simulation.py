@@ -68,18 +68,21 @@ def random_landmarks(
         InvalidModel: the landmarks do not fit (rejection sampling gives up after 1000 tries per landmark).
     """
     xmin, xmax, ymin, ymax = bounds
-    out: list[FloatArray] = []
+    out = np.empty((count, 2))
+    placed = 0
     tries = 0
-    while len(out) < count:
+    while placed < count:
         p = np.array([rng.uniform(xmin, xmax), rng.uniform(ymin, ymax)])
-        if all(np.hypot(*(p - q)) >= min_separation_m for q in out):
-            out.append(p)
+        d2 = np.sum((out[:placed] - p) ** 2, axis=1)
+        if placed == 0 or float(d2.min()) >= min_separation_m**2:
+            out[placed] = p
+            placed += 1
             tries = 0
         else:
             tries += 1
             if tries > 1000:
                 raise InvalidModel(f"cannot place {count} landmarks {min_separation_m} m apart in {bounds}")
-    return np.array(out).reshape(count, 2)
+    return out
 
 
 def simulate_landmark_run(
