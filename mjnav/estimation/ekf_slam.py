@@ -15,8 +15,10 @@ State x = [x, y, θ, m1x, m1y, …, mMx, mMy] (metres, radians, map frame) with 
 Association quality (tests and ``benchmarks/estimation_filters.py``): on the seeded simulated world of the tests
 (landmarks ≥ 2 m apart, range ≤ 6 m, σ_r = 0.1 m, σ_φ = 0.02 rad (≈ 1.1°), motion α = (0.01, 0, 0.0001, 0.01,
 0.0001, 0), Δt = 0.5 s, v = 1.5 m/s, one loop of 80 steps), ≥ 99% of the observations are attributed to the right
-landmark (matched or correctly new) with the default gates. At larger noise, or landmarks closer than a few σ of
-the pose uncertainty, the nearest-neighbour rate drops; JCBB is the more robust option then.
+landmark (matched or correctly new) with the default gates, by nearest neighbour and by JCBB alike (measured:
+99.87% and 99.85% over 50 runs, none wrong). With 4× those motion α and 60 landmarks 1.5 m apart (20 runs, not a
+test) both still scored ≈ 99.75%, but the pose NEES averaged ≈ 7, i.e. the filter was overconfident there; JCBB
+cost ≈ 40× the time of nearest neighbour in that denser world.
 """
 
 from __future__ import annotations
