@@ -35,10 +35,17 @@ _EMPTY = np.zeros(0)
 @njit(cache=True)
 def _predict_kernel(
     x: FloatArray, P: FloatArray, F: FloatArray, Q: FloatArray, G: FloatArray, u: FloatArray, b: FloatArray
-) -> tuple[FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, bool]:
     # x' = F x + G u + b; P' = F P Fᵀ + Q. G/u and b may be empty (size 0): then they are skipped.
+    # The flag is False (and nothing computed) when u or b holds NaN/inf.
     n = x.shape[0]
     nu = u.shape[0]
+    for k in range(nu):
+        if not math.isfinite(u[k]):
+            return x, P, False
+    for k in range(b.shape[0]):
+        if not math.isfinite(b[k]):
+            return x, P, False
     xn = np.empty(n)
     for i in range(n):
         s = 0.0
@@ -64,7 +71,7 @@ def _predict_kernel(
                 s += FP[i, k] * F[j, k]
             Pn[i, j] = s + 0.5 * (Q[i, j] + Q[j, i])
             Pn[j, i] = Pn[i, j]
-    return xn, Pn
+    return xn, Pn, True
 
 
 @njit(cache=True)
@@ -176,7 +183,8 @@ def _update_core(
 @njit(cache=True)
 def _kf_update_kernel(
     x: FloatArray, P: FloatArray, H: FloatArray, R: FloatArray, y: FloatArray, d: FloatArray, joseph: bool
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, float, float, bool]:
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, float, float, int]:
+    """ν = y − H x − d, then :func:`_update_core`. Status: 0 ok, 1 S not PD, 2 y or d not finite."""
     n = x.shape[0]
     m = y.shape[0]
     nu = np.empty(m)
@@ -186,9 +194,11 @@ def _kf_update_kernel(
             s -= H[i, k] * x[k]
         if d.shape[0] > 0:
             s -= d[i]
+        if not math.isfinite(s):
+            return x, P, P, P, nu, math.nan, math.nan, 2
         nu[i] = s
     xn, Pn, S, K, nis, logdet, ok = _update_core(x, P, H, R, nu, joseph)
-    return xn, Pn, S, K, nu, nis, logdet, ok
+    return xn, Pn, S, K, nu, nis, logdet, 0 if ok else 1
 
 
 def _matrix(a: ArrayLike, shape: tuple[int, int], name: str) -> FloatArray:
@@ -220,6 +230,13 @@ def _vector(a: ArrayLike, n: int, name: str, error: type[ValueError] = InvalidMe
     if not np.isfinite(v).all():
         raise error(f"{name} contains non-finite values")
     return v
+
+
+def _hot_vector(a: ArrayLike, n: int, name: str) -> FloatArray:
+    """:func:`_vector` for the per-step inputs: a float64 (n,) array passes as is (the kernels check finiteness)."""
+    if type(a) is np.ndarray and a.dtype == np.float64 and a.shape == (n,) and a.flags.c_contiguous:
+        return a
+    return _vector(a, n, name)
 
 
 class _GaussianState:
@@ -335,6 +352,7 @@ class KalmanFilter(_GaussianState):
             if Gm.ndim == 1:
                 Gm = Gm.reshape(n, -1)
             self.G = _matrix(Gm, (n, Gm.shape[1] if Gm.ndim == 2 else 0), "G")
+        self._no_G = np.zeros((n, 0))
         x = np.zeros(n) if x0 is None else _vector(x0, n, "x0", InvalidModel)
         P = np.eye(n) if P0 is None else _covariance(P0, n, "P0")
         super().__init__(x, P, m, joseph)
@@ -356,13 +374,16 @@ class KalmanFilter(_GaussianState):
         """
         n = self._x.shape[0]
         if u is None:
-            G, uu = _EMPTY.reshape(n, 0), _EMPTY
+            G, uu = self._no_G, _EMPTY
         else:
             if self.G is None:
                 raise InvalidMeasurement("predict(u) needs a control matrix G")
-            G, uu = self.G, _vector(u, self.G.shape[1], "u")
-        b = _EMPTY if offset is None else _vector(offset, n, "offset")
-        self._x, self._P = _predict_kernel(self._x, self._P, self.F, self.Q, G, uu, b)
+            G, uu = self.G, _hot_vector(u, self.G.shape[1], "u")
+        b = _EMPTY if offset is None else _hot_vector(offset, n, "offset")
+        x, P, finite = _predict_kernel(self._x, self._P, self.F, self.Q, G, uu, b)
+        if not finite:
+            raise InvalidMeasurement("u or offset contains non-finite values")
+        self._x, self._P = x, P
 
     def update(self, y: ArrayLike, *, offset: ArrayLike | None = None) -> None:
         """Measurement update with y = H x + d + v, v ~ N(0, R).
@@ -376,10 +397,12 @@ class KalmanFilter(_GaussianState):
             NotPositiveDefinite: S = H P Hᵀ + R is not positive definite.
         """
         m = self.H.shape[0]
-        yy = _vector(y, m, "y")
-        d = _EMPTY if offset is None else _vector(offset, m, "offset")
-        xn, Pn, S, K, nu, nis, logdet, ok = _kf_update_kernel(self._x, self._P, self.H, self.R, yy, d, self.joseph)
-        self._store((xn, Pn, S, K, nis, logdet, ok))
+        yy = _hot_vector(y, m, "y")
+        d = _EMPTY if offset is None else _hot_vector(offset, m, "offset")
+        xn, Pn, S, K, nu, nis, logdet, status = _kf_update_kernel(self._x, self._P, self.H, self.R, yy, d, self.joseph)
+        if status == 2:
+            raise InvalidMeasurement("y or offset contains non-finite values")
+        self._store((xn, Pn, S, K, nis, logdet, status == 0))
         self.innovation = nu
 
     def filter(
@@ -482,7 +505,7 @@ class ExtendedKalmanFilter(_GaussianState):
         n = self._x.shape[0]
         F = _matrix(self.F_jacobian(self._x, u), (n, n), "F_jacobian(x, u)")
         xn = _vector(self.f(self._x, u), n, "f(x, u)", InvalidModel)
-        _, Pn = _predict_kernel(self._x, self._P, F, self.Q, _EMPTY.reshape(n, 0), _EMPTY, _EMPTY)
+        _, Pn, _ = _predict_kernel(self._x, self._P, F, self.Q, _EMPTY.reshape(n, 0), _EMPTY, _EMPTY)
         self._x, self._P = xn, Pn
 
     def update(

@@ -137,6 +137,16 @@ def test_bad_input_raises_typed_errors() -> None:
         kf.update([1.0, math.nan])
     with pytest.raises(InvalidMeasurement):
         kf.predict([1.0])
+    x, P = kf.x, kf.P
+    with pytest.raises(InvalidMeasurement):  # float64 arrays take the fast path: the kernel checks them
+        kf.update(np.array([1.0, np.inf]))
+    with pytest.raises(InvalidMeasurement):
+        kf.update(np.array([1.0, 2.0]), offset=np.array([np.nan, 0.0]))
+    with pytest.raises(InvalidMeasurement):
+        kf.predict(np.array([0.0, np.nan]))
+    with pytest.raises(InvalidMeasurement):
+        kf.predict(offset=np.array([0.0, 0.0, np.inf, 0.0]))
+    assert kf.x is x and kf.P is P  # a refused step leaves the state alone
     plain = KalmanFilter(np.eye(2), np.eye(2), np.eye(2), np.eye(2))
     with pytest.raises(InvalidMeasurement, match="needs a control matrix"):
         plain.predict([1.0, 2.0])
