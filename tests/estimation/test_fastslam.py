@@ -50,7 +50,7 @@ def test_predict_samples_the_velocity_model_like_the_ekf_propagates_it() -> None
     P0 = np.diag([0.01, 0.02, 0.003])
     start = (1.0, -2.0, 0.4)
     fast = FastSLAM(
-        ALPHAS, 0.1, 0.01, rng=np.random.default_rng(1), num_particles=50_000, initial_pose=start, initial_covariance=P0
+        ALPHAS, 0.1, 0.01, rng=np.random.default_rng(1), num_particles=20_000, initial_pose=start, initial_covariance=P0
     )
     ekf = EKFSLAM(ALPHAS, 0.1, 0.01, initial_pose=start, initial_covariance=P0)
     fast.predict(1.2, 0.8, 0.5)
