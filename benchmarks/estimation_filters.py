@@ -195,6 +195,8 @@ def main() -> None:
     # ------------------------------------------------------------------------------------------------------ SLAM
     print()
     print(f"SLAM on the seeded loop world ({runs} Monte Carlo runs per row; 40 landmarks >= 2 m apart, range 6 m)")
+    if args.quick:
+        print("--quick: 10 runs per row, so the NEES verdicts are indicative only; the goal is stated for 50 runs")
     header = (
         f"{'filter / world':46s} {'runs':>4s} {'anees':>7s} {'median':>6s} {'95% band':>11s} {'in band':>7s}"
         f" {'correct':>8s} {'wrong':>5s} {'disc':>5s} {'lm rmse':>8s} {'ms/step':>8s}  verdict"
