@@ -1,0 +1,26 @@
+"""mjnav.estimation: state estimation, SLAM and scan matching (numpy/scipy/numba only).
+
+Scan matching (:mod:`mjnav.estimation.scan_matching`): :func:`scan_match` (ICP, PL-ICP, CSM) and
+:class:`CorrelativeGridMatcher` (branch-and-bound matching against an occupancy grid); line extraction
+(:mod:`mjnav.estimation.split_merge`). File readers live at the edge (:mod:`mjnav.estimation.carmen`).
+"""
+
+from mjnav.estimation.scan_matching import (
+    CorrelativeGridMatcher,
+    InsufficientPointsError,
+    NoMatchError,
+    ScanMatchError,
+    ScanMatchResult,
+    scan_match,
+    scan_to_points,
+)
+
+__all__ = [
+    "CorrelativeGridMatcher",
+    "InsufficientPointsError",
+    "NoMatchError",
+    "ScanMatchError",
+    "ScanMatchResult",
+    "scan_match",
+    "scan_to_points",
+]
