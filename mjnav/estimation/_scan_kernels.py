@@ -308,6 +308,15 @@ def icp_kernel(
     converged = False
     tx = np.empty(n)
     ty = np.empty(n)
+    search = max_corr
+    # Pose two iterations back: a correspondence set flipping between two states makes a 2-cycle, which
+    # ends the iteration like a fixed point does.
+    px2 = np.inf
+    py2 = np.inf
+    pth2 = np.inf
+    px1 = x
+    py1 = y
+    pth1 = th
     while it < max_iter:
         it += 1
         c = math.cos(th)
@@ -316,7 +325,7 @@ def icp_kernel(
         for i in range(n):
             tx[i] = c * scan[i, 0] - s * scan[i, 1] + x
             ty[i] = s * scan[i, 0] + c * scan[i, 1] + y
-            cnt = knn(tx[i], ty[i], ref, slot_key, slot_val, starts, order, cell, 1, max_corr, idx1, d21)
+            cnt = knn(tx[i], ty[i], ref, slot_key, slot_val, starts, order, cell, 1, search, idx1, d21)
             if cnt == 0 or (point_to_line and not line_ok[idx1[0]]):
                 nn[i] = -1
                 d[i] = np.inf
@@ -335,12 +344,16 @@ def icp_kernel(
             return x, y, th, it, False, nn, inl
         # Adaptive trimming: keep |residual| <= outlier_mult × median |residual| (floored at 1e-9 m).
         absr = np.empty(m)
+        dist = np.empty(m)
         k = 0
         for i in range(n):
             if nn[i] >= 0:
                 absr[k] = abs(res[i])
+                dist[k] = d[i]
                 k += 1
         thr = max(outlier_mult * np.median(absr), 1e-9)
+        # Later searches stop at 4 × the median pair distance (>= 0.25 m): farther pairs would be trimmed.
+        search = min(search, max(4.0 * np.median(dist), 0.25))
         cnt_in = 0
         for i in range(n):
             inl[i] = nn[i] >= 0 and abs(res[i]) <= thr
@@ -408,6 +421,15 @@ def icp_kernel(
         if step_t < eps_t and abs(dth) < eps_r:
             converged = True
             break
+        if math.hypot(x - px2, y - py2) < eps_t and abs(th - pth2) < eps_r:
+            converged = True
+            break
+        px2 = px1
+        py2 = py1
+        pth2 = pth1
+        px1 = x
+        py1 = y
+        pth1 = th
     return x, y, th, it, converged, nn, inl
 
 
