@@ -19,6 +19,7 @@ Exit codes: 0 done; 2 bad arguments or an unreadable log.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 import time
@@ -171,10 +172,8 @@ def evaluate_consecutive(
     delta = perturbations(n, init_error, seed)
     pts = [log.points(i, max_range_m=max_range_m) for i in range(n + 1)]
     # Warm-up: load the compiled kernels outside the timed region.
-    try:
+    with contextlib.suppress(ScanMatchError):
         scan_match(pts[0], pts[0], (0.0, 0.0, 0.0), method=method)  # type: ignore[arg-type]
-    except ScanMatchError:
-        pass
     te = np.full(n, np.inf)
     re = np.full(n, np.inf)
     ts = np.zeros(n)

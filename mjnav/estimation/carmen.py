@@ -95,7 +95,7 @@ def parse_carmen(lines: Iterable[str]) -> CarmenLog:
         stamps.append(vals[n + 6])
     if n_beams < 0:
         raise CarmenFormatError("no FLASER line found")
-    angles = -0.5 * math.pi + np.arange(n_beams) * (math.pi / n_beams)
+    angles = np.asarray(-0.5 * math.pi + np.arange(n_beams) * (math.pi / n_beams), dtype=np.float64)
     return CarmenLog(
         ranges=np.asarray(ranges, dtype=np.float64),
         angles=angles,
