@@ -22,6 +22,7 @@ The (ρ, α) lines and the corners are the usual EKF-SLAM landmarks (Siegwart & 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -208,7 +209,7 @@ def split_and_merge(
     gaps = np.flatnonzero(np.hypot(*np.diff(p, axis=0).T) > max_gap_m)
     bounds = np.concatenate(([0], gaps + 1, [n]))
     pieces: list[tuple[int, int]] = []  # inclusive index ranges
-    for r0, r1 in zip(bounds[:-1], bounds[1:], strict=True):
+    for r0, r1 in itertools.pairwise(bounds):
         run = [(int(r0), int(r1) - 1)]
         # 2. split.
         done: list[tuple[int, int]] = []
