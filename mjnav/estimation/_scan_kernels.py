@@ -288,6 +288,7 @@ def icp_kernel(
     eps_t: float,
     eps_r: float,
     rot_scale: float,
+    anneal: float,
 ) -> tuple[float, float, float, int, bool, NDArray[np.int64], NDArray[np.bool_]]:
     """Iterate correspondences and the closed-form (point-to-point) or Gauss–Newton (point-to-line) update.
 
@@ -309,6 +310,9 @@ def icp_kernel(
     tx = np.empty(n)
     ty = np.empty(n)
     search = max_corr
+    # The trimming threshold never drops below a floor that starts at max_corr and shrinks geometrically, so
+    # a direction constrained by few points (a far wall) is not trimmed away before the others have converged.
+    floor = max_corr
     # Pose two iterations back: a correspondence set flipping between two states makes a 2-cycle, which
     # ends the iteration like a fixed point does.
     px2 = np.inf
@@ -351,7 +355,10 @@ def icp_kernel(
                 absr[k] = abs(res[i])
                 dist[k] = d[i]
                 k += 1
-        thr = max(outlier_mult * np.median(absr), 1e-9)
+        adaptive = outlier_mult * np.median(absr)
+        annealing = floor > adaptive  # the floor still decides: not a fixed point yet
+        thr = max(adaptive, floor, 1e-9)
+        floor *= anneal
         # Later searches stop at 4 × the median pair distance (>= 0.25 m): farther pairs would be trimmed.
         search = min(search, max(4.0 * np.median(dist), 0.25))
         cnt_in = 0
@@ -418,6 +425,8 @@ def icp_kernel(
         x = nxp
         y = nyp
         th = th + dth
+        if annealing:
+            continue
         if step_t < eps_t and abs(dth) < eps_r:
             converged = True
             break

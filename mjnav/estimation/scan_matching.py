@@ -9,13 +9,16 @@ Methods of :func:`scan_match`:
 
 * ``"icp"`` — point-to-point ICP (Besl & McKay 1992): nearest reference point per scan point (exact, through a
   spatial hash), adaptive trimming (pairs with distance > ``outlier_mult`` × the median are dropped), closed-form
-  least-squares pose per iteration (Arun et al. 1987).
+  least-squares pose per iteration (Arun et al. 1987). The trimming threshold is floored by an annealed
+  distance (``max_correspondence_m``, halved every iteration) so that a direction constrained by a minority of
+  points (a far wall) is not trimmed away before the rest has converged; iterations stop only once the floor
+  no longer decides (at a fixed point, or a 2-cycle of correspondence sets).
 * ``"plicp"`` — point-to-line ICP (Censi, "An ICP variant using a point-to-line metric", ICRA 2008): the
   error of a scan point is its distance to the line through its nearest reference point. The line direction
   is fitted to that point's neighbours (PCA of those within 0.2 m, at least the 5 nearest) instead of Censi's two
   nearest points, which keeps it stable under range noise; corner points (no dominant direction) are not
-  used. Each iteration takes one Gauss–Newton step of the point-to-line error with the new correspondences;
-  the fixed point is Censi's. Converges in a few iterations.
+  used. Each iteration takes one Gauss–Newton step of the point-to-line error with the new correspondences
+  (same trimming as ICP, on the point-to-line residual); the fixed point is Censi's.
 * ``"csm"`` — correlative scan matching (Olson, "Real-time correlative scan matching", ICRA 2009): the
   reference is rasterised into a lookup table of per-point log-likelihood (a Gaussian of the distance to the
   nearest reference point, mixed with a uniform floor so outliers cost a bounded amount), and every pose of a
@@ -34,7 +37,7 @@ Covariances are (3, 3) over (x, y, θ) in m², m·rad, rad². For ICP and PL-ICP
 point-to-line residuals at the solution (σ² estimated from them; Bengtsson & Baerveldt 2003, in Censi's
 point-to-line form), for both methods, because point-to-point residuals hide the sliding of a scan along a
 wall. A match whose point-to-line information is rank-deficient (a corridor, a single wall, a circle) is
-flagged ``degenerate``: the unobservable direction keeps the initial value and gets a very large variance.
+flagged ``degenerate``: the unobservable direction keeps the initial value and gets the variance 1e6 (m²).
 """
 
 from __future__ import annotations
@@ -66,6 +69,8 @@ _NORMAL_MAX_RADIUS_M = 0.6
 _NORMAL_MIN_K = 5
 _NORMAL_MAX_RATIO = 0.05
 _DEGENERACY_RATIO = 1e-3
+_UNOBSERVABLE_VAR = 1e6
+_ANNEAL = 0.5
 
 
 class ScanMatchError(ValueError):
@@ -191,18 +196,16 @@ def _wrap(a: float) -> float:
 def _covariance_from_information(
     H: NDArray[np.float64], sigma2: float, scale: float
 ) -> tuple[NDArray[np.float64], bool]:
-    """σ²·H⁻¹ with rank-deficient directions (relative eigenvalue < _DEGENERACY_RATIO on the θ-scaled
-    problem) given a variance 1e6× the largest one; returns (covariance, degenerate)."""
-    D = np.array([1.0, 1.0, scale])
-    Hs = H * np.outer(D, D)
+    """σ²·H⁻¹, where rank-deficient directions (relative eigenvalue < _DEGENERACY_RATIO on the problem with θ
+    scaled to metres by ``scale``) get the variance _UNOBSERVABLE_VAR (m², or m² per scaled radian) instead;
+    returns (covariance, degenerate)."""
+    D = np.array([1.0, 1.0, 1.0 / scale])
+    Hs = H / np.outer(D, D)
     w, V = np.linalg.eigh(0.5 * (Hs + Hs.T))
     top = max(float(w[-1]), 1e-300)
     small = w < _DEGENERACY_RATIO * top
-    inv = np.where(small, 0.0, 1.0 / np.where(small, 1.0, w))
-    big = 1e6 * float(inv.max()) if np.any(~small) else 1e6
-    inv = np.where(small, big, inv)
-    cov_s = (V * inv) @ V.T
-    cov = sigma2 * cov_s * np.outer(D, D)
+    var = np.where(small, _UNOBSERVABLE_VAR, sigma2 / np.where(small, 1.0, w))
+    cov = ((V * var) @ V.T) / np.outer(D, D)
     return 0.5 * (cov + cov.T), bool(np.any(small))
 
 
@@ -254,6 +257,7 @@ def _icp(
         tolerance_m,
         tolerance_rad,
         1.0 / scale_len,
+        _ANNEAL,
     )
     n_in = int(inl.sum())
     if n_in < 3:
@@ -274,7 +278,7 @@ def _icp(
         H[2, 2] = float(np.sum(pr * pr))
         d = ref[nn[inl]] - (pr + np.array([x, y]))
         sigma2 = float(np.sum(d * d)) / max(2 * n_in - 3, 1)
-    cov, degenerate = _covariance_from_information(H, sigma2, 1.0 / scale_len)
+    cov, degenerate = _covariance_from_information(H, sigma2, scale_len)
     return ScanMatchResult(
         pose=np.array([x, y, _wrap(th)]),
         covariance=cov,
