@@ -356,7 +356,8 @@ def icp_kernel(
                 dist[k] = d[i]
                 k += 1
         adaptive = outlier_mult * np.median(absr)
-        annealing = floor > adaptive  # the floor still decides: not a fixed point yet
+        # The floor still decides (until it is below 1 % of max_corr): not a fixed point yet.
+        annealing = floor > adaptive and floor > 0.01 * max_corr
         thr = max(adaptive, floor, 1e-9)
         floor *= anneal
         # Later searches stop at 4 × the median pair distance (>= 0.25 m): farther pairs would be trimmed.
