@@ -10,9 +10,9 @@ Methods of :func:`scan_match`:
 * ``"icp"`` — point-to-point ICP (Besl & McKay 1992): nearest reference point per scan point (exact, through a
   spatial hash), adaptive trimming (pairs with distance > ``outlier_mult`` × the median are dropped), closed-form
   least-squares pose per iteration (Arun et al. 1987). The trimming threshold is floored by an annealed
-  distance (``max_correspondence_m``, halved every iteration down to 1 % of it) so that a direction constrained by a minority of
-  points (a far wall) is not trimmed away before the rest has converged; iterations stop only once the floor
-  no longer decides (at a fixed point, or a 2-cycle of correspondence sets).
+  distance (``max_correspondence_m``, halved every iteration down to 1 % of it) so that a direction
+  constrained by a minority of points (a far wall) is not trimmed away before the rest has converged;
+  iterations stop only once the floor no longer decides (at a fixed point, or a 2-cycle of correspondences).
 * ``"plicp"`` — point-to-line ICP (Censi, "An ICP variant using a point-to-line metric", ICRA 2008): the
   error of a scan point is its distance to the line through its nearest reference point. The line direction
   is fitted to that point's neighbours (PCA of those within 0.2 m, at least the 5 nearest) instead of Censi's two
