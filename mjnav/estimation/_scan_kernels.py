@@ -98,8 +98,13 @@ def knn(
     max_d: float,
     out_idx: NDArray[np.int64],
     out_d2: NDArray[np.float64],
+    hint: int = -1,
 ) -> int:
-    """The up to ``k`` nearest points within ``max_d`` of (px, py), sorted by distance; returns their count."""
+    """The up to ``k`` nearest points within ``max_d`` of (px, py), sorted by distance; returns their count.
+
+    ``hint`` (k = 1 only): index of a point likely to be the nearest (e.g. last iteration's); its distance
+    bounds the search from the start, so most queries stop at their own cell.
+    """
     for j in range(k):
         out_d2[j] = np.inf
         out_idx[j] = -1
@@ -114,6 +119,14 @@ def knn(
     margin = min(min(ux, 1.0 - ux), min(uy, 1.0 - uy))
     max_d2 = max_d * max_d
     found = 0
+    if hint >= 0 and k == 1:
+        ex = pts[hint, 0] - px
+        ey = pts[hint, 1] - py
+        d2 = ex * ex + ey * ey
+        if d2 <= max_d2:
+            out_d2[0] = d2
+            out_idx[0] = hint
+            found = 1
     ring = 0
     max_ring = int(max_d / cell) + 1
     while ring <= max_ring:
@@ -329,7 +342,7 @@ def icp_kernel(
         for i in range(n):
             tx[i] = c * scan[i, 0] - s * scan[i, 1] + x
             ty[i] = s * scan[i, 0] + c * scan[i, 1] + y
-            cnt = knn(tx[i], ty[i], ref, slot_key, slot_val, starts, order, cell, 1, search, idx1, d21)
+            cnt = knn(tx[i], ty[i], ref, slot_key, slot_val, starts, order, cell, 1, search, idx1, d21, nn[i])
             if cnt == 0 or (point_to_line and not line_ok[idx1[0]]):
                 nn[i] = -1
                 d[i] = np.inf

@@ -10,7 +10,7 @@ Methods of :func:`scan_match`:
 * ``"icp"`` — point-to-point ICP (Besl & McKay 1992): nearest reference point per scan point (exact, through a
   spatial hash), adaptive trimming (pairs with distance > ``outlier_mult`` × the median are dropped), closed-form
   least-squares pose per iteration (Arun et al. 1987). The trimming threshold is floored by an annealed
-  distance (``max_correspondence_m``, halved every iteration down to 1 % of it) so that a direction
+  distance (``max_correspondence_m``, × 0.3 every iteration, down to 1 % of it) so that a direction
   constrained by a minority of points (a far wall) is not trimmed away before the rest has converged;
   iterations stop only once the floor no longer decides (at a fixed point, or a 2-cycle of correspondences).
 * ``"plicp"`` — point-to-line ICP (Censi, "An ICP variant using a point-to-line metric", ICRA 2008): the
@@ -70,7 +70,7 @@ _NORMAL_MIN_K = 5
 _NORMAL_MAX_RATIO = 0.05
 _DEGENERACY_RATIO = 1e-3
 _UNOBSERVABLE_VAR = 1e6
-_ANNEAL = 0.5
+_ANNEAL = 0.3
 
 
 class ScanMatchError(ValueError):
