@@ -84,7 +84,7 @@ def _find(slot_key: NDArray[np.int64], slot_val: NDArray[np.int64], ix: int, iy:
         h = (h + 1) & mask
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def knn(
     px: float,
     py: float,
@@ -177,8 +177,10 @@ def fit_normals(
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Unit normals (N, 2) of the local line at each point and whether it is a line (planarity test).
 
-    Neighbourhood: every point within ``radius`` or, where fewer than ``min_k`` lie there, the ``min_k``
-    nearest within ``max_radius``. A line is accepted when the neighbourhood's smaller covariance eigenvalue
+    Neighbourhood: the index-contiguous run of points within ``radius`` around the point (scan order: the
+    same surface) when it has at least ``min_k`` points and is bounded on both sides by farther points;
+    otherwise every point within ``radius`` (spatial hash) or, where fewer than ``min_k`` lie there, the
+    ``min_k`` nearest within ``max_radius``. A line is accepted when the neighbourhood's smaller covariance eigenvalue
     is at most ``max_ratio`` times the larger one.
     """
     n = pts.shape[0]
@@ -191,30 +193,58 @@ def fit_normals(
     for i in range(n):
         px = pts[i, 0]
         py = pts[i, 1]
-        cx = math.floor(px / cell)
-        cy = math.floor(py / cell)
         m = 0
         sx = 0.0
         sy = 0.0
         sxx = 0.0
         sxy = 0.0
         syy = 0.0
-        for dx in range(-rings, rings + 1):
-            for dy in range(-rings, rings + 1):
-                u = _find(slot_key, slot_val, cx + dx + _OFF, cy + dy + _OFF)
-                if u < 0:
-                    continue
-                for j in range(starts[u], starts[u + 1]):
-                    q = order[j]
-                    ex = pts[q, 0] - px
-                    ey = pts[q, 1] - py
-                    if ex * ex + ey * ey <= r2:
-                        m += 1
-                        sx += ex
-                        sy += ey
-                        sxx += ex * ex
-                        sxy += ex * ey
-                        syy += ey * ey
+        # Points in scan order: the neighbours along the same surface are the index-contiguous run within the
+        # radius on either side. Runs that are cut short (unordered input, or a point where the surface is
+        # interrupted) fall back to the spatial search below.
+        lo = i
+        while lo > 0:
+            ex = pts[lo - 1, 0] - px
+            ey = pts[lo - 1, 1] - py
+            if ex * ex + ey * ey > r2:
+                break
+            lo -= 1
+        hi = i
+        while hi < n - 1:
+            ex = pts[hi + 1, 0] - px
+            ey = pts[hi + 1, 1] - py
+            if ex * ex + ey * ey > r2:
+                break
+            hi += 1
+        if hi - lo + 1 >= min_k and lo > 0 and hi < n - 1:
+            for q in range(lo, hi + 1):
+                ex = pts[q, 0] - px
+                ey = pts[q, 1] - py
+                m += 1
+                sx += ex
+                sy += ey
+                sxx += ex * ex
+                sxy += ex * ey
+                syy += ey * ey
+        if m == 0:
+            cx = math.floor(px / cell)
+            cy = math.floor(py / cell)
+            for dx in range(-rings, rings + 1):
+                for dy in range(-rings, rings + 1):
+                    u = _find(slot_key, slot_val, cx + dx + _OFF, cy + dy + _OFF)
+                    if u < 0:
+                        continue
+                    for j in range(starts[u], starts[u + 1]):
+                        q = order[j]
+                        ex = pts[q, 0] - px
+                        ey = pts[q, 1] - py
+                        if ex * ex + ey * ey <= r2:
+                            m += 1
+                            sx += ex
+                            sy += ey
+                            sxx += ex * ex
+                            sxy += ex * ey
+                            syy += ey * ey
         if m < min_k:
             cnt = knn(px, py, pts, slot_key, slot_val, starts, order, cell, min_k, max_radius, idx, d2k)
             m = cnt
