@@ -402,7 +402,6 @@ def icp_kernel(
         # The floor still decides (until it is below 1 % of max_corr): not a fixed point yet.
         annealing = floor > adaptive and floor > 0.01 * max_corr
         thr = max(adaptive, floor, 1e-9)
-        floor *= anneal
         # Later searches stop at 4 × the median pair distance (>= 0.25 m): farther pairs would be trimmed.
         search = min(search, max(4.0 * np.median(dist), 0.25))
         cnt_in = 0
@@ -466,6 +465,9 @@ def icp_kernel(
             nyp = qy - (sn * px + cn * py)
         dth = math.atan2(math.sin(nth - th), math.cos(nth - th))
         step_t = math.hypot(nxp - x, nyp - y)
+        # Next floor: at most ``anneal`` × itself and 3 × how far this update moved the farthest-typical point
+        # (translation + rotation × typical range): correct pairs are then off by about the remaining error.
+        floor = min(floor * anneal, 3.0 * (step_t + abs(dth) / rot_scale))
         x = nxp
         y = nyp
         th = th + dth
@@ -523,6 +525,42 @@ def point_to_line_hessian(
         ss += r * r
         m += 1
     return H, ss, m
+
+
+@njit(cache=True)
+def information_to_covariance(
+    H: NDArray[np.float64], sigma2: float, scale: float, ratio: float, unobservable_var: float
+) -> tuple[NDArray[np.float64], bool]:
+    """σ²·H⁻¹ on the problem with θ scaled to metres (× ``scale``); eigen-directions below ``ratio`` × the
+    largest eigenvalue get ``unobservable_var`` instead. Returns (symmetric covariance (3, 3), degenerate)."""
+    D = np.array([1.0, 1.0, scale])
+    Hs = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            Hs[a, b] = 0.5 * (H[a, b] + H[b, a]) / (D[a] * D[b])
+    w, V = np.linalg.eigh(Hs)
+    top = max(w[2], 1e-300)
+    var = np.empty(3)
+    degenerate = False
+    for e in range(3):
+        if w[e] < ratio * top:
+            var[e] = unobservable_var
+            degenerate = True
+        else:
+            var[e] = sigma2 / w[e]
+    cov = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            c = 0.0
+            for e in range(3):
+                c += V[a, e] * var[e] * V[b, e]
+            cov[a, b] = c / (D[a] * D[b])
+    for a in range(3):
+        for b in range(a + 1, 3):
+            m = 0.5 * (cov[a, b] + cov[b, a])
+            cov[a, b] = m
+            cov[b, a] = m
+    return cov, degenerate
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -10,9 +10,11 @@ Methods of :func:`scan_match`:
 * ``"icp"`` — point-to-point ICP (Besl & McKay 1992): nearest reference point per scan point (exact, through a
   spatial hash), adaptive trimming (pairs with distance > ``outlier_mult`` × the median are dropped), closed-form
   least-squares pose per iteration (Arun et al. 1987). The trimming threshold is floored by an annealed
-  distance (``max_correspondence_m``, × 0.3 every iteration, down to 1 % of it) so that a direction
-  constrained by a minority of points (a far wall) is not trimmed away before the rest has converged;
-  iterations stop only once the floor no longer decides (at a fixed point, or a 2-cycle of correspondences).
+  distance (first ``max_correspondence_m``, then at most 0.3 × the previous floor and 3 × the distance the
+  last update moved a point at the scan's RMS range) so that a direction constrained by a minority of points
+  (a far wall) is not trimmed away before the rest has converged; iterations stop only once the floor no
+  longer decides (below the adaptive threshold or 1 % of ``max_correspondence_m``) at a fixed point or a
+  2-cycle of correspondence sets.
 * ``"plicp"`` — point-to-line ICP (Censi, "An ICP variant using a point-to-line metric", ICRA 2008): the
   error of a scan point is its distance to the line through its nearest reference point. The line direction
   is fitted to that point's neighbours (PCA of those within 0.2 m, at least the 5 nearest) instead of Censi's two
@@ -161,7 +163,8 @@ def _points(xy: ArrayLike, name: str, minimum: int) -> NDArray[np.float64]:
         raise ScanMatchError(f"{name} must be an (N, 2) array of numbers") from exc
     if p.ndim != 2 or p.shape[1] != 2:
         raise ScanMatchError(f"{name} must have shape (N, 2), got {p.shape}")
-    p = np.ascontiguousarray(p[np.all(np.isfinite(p), axis=1)])
+    finite = np.isfinite(p)
+    p = np.ascontiguousarray(p) if finite.all() else np.ascontiguousarray(p[finite.all(axis=1)])
     if p.shape[0] < minimum:
         raise InsufficientPointsError(f"{name} has {p.shape[0]} finite points, need at least {minimum}")
     return p
@@ -199,14 +202,8 @@ def _covariance_from_information(
     """σ²·H⁻¹, where rank-deficient directions (relative eigenvalue < _DEGENERACY_RATIO on the problem with θ
     scaled to metres by ``scale``) get the variance _UNOBSERVABLE_VAR (m², or m² per scaled radian) instead;
     returns (covariance, degenerate)."""
-    D = np.array([1.0, 1.0, 1.0 / scale])
-    Hs = H / np.outer(D, D)
-    w, V = np.linalg.eigh(0.5 * (Hs + Hs.T))
-    top = max(float(w[-1]), 1e-300)
-    small = w < _DEGENERACY_RATIO * top
-    var = np.where(small, _UNOBSERVABLE_VAR, sigma2 / np.where(small, 1.0, w))
-    cov = ((V * var) @ V.T) / np.outer(D, D)
-    return 0.5 * (cov + cov.T), bool(np.any(small))
+    cov, degenerate = kern.information_to_covariance(H, sigma2, scale, _DEGENERACY_RATIO, _UNOBSERVABLE_VAR)
+    return cov, bool(degenerate)
 
 
 def _icp(
@@ -545,8 +542,8 @@ def scan_match(
     max_iterations: int = 100,
     max_correspondence_m: float = 1.0,
     outlier_mult: float = 3.0,
-    tolerance_m: float = 1e-6,
-    tolerance_rad: float = 1e-7,
+    tolerance_m: float = 1e-5,
+    tolerance_rad: float = 1e-6,
     csm_resolution_m: float = 0.02,
     csm_window_m: float = 0.3,
     csm_window_rad: float = math.radians(10.0),
