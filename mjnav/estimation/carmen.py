@@ -30,7 +30,7 @@ class CarmenFormatError(ScanMatchError):
     """A CARMEN log line cannot be parsed (wrong field count or a non-numeric field), or holds no scan."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CarmenLog:
     """The ``FLASER`` scans of a CARMEN log.
 

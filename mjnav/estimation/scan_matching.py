@@ -73,6 +73,7 @@ _NORMAL_MAX_RATIO = 0.05
 _DEGENERACY_RATIO = 1e-3
 _UNOBSERVABLE_VAR = 1e6
 _ANNEAL = 0.3
+_MAX_COORD_M = 1e5  # the spatial hash's cell keys hold ±2^20 cells of 0.1 m
 
 
 class ScanMatchError(ValueError):
@@ -87,7 +88,7 @@ class NoMatchError(ScanMatchError):
     """No pose in the search window scores above the requested minimum (correlative matchers)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ScanMatchResult:
     """The outcome of one match.
 
@@ -167,6 +168,8 @@ def _points(xy: ArrayLike, name: str, minimum: int) -> NDArray[np.float64]:
     p = np.ascontiguousarray(p) if finite.all() else np.ascontiguousarray(p[finite.all(axis=1)])
     if p.shape[0] < minimum:
         raise InsufficientPointsError(f"{name} has {p.shape[0]} finite points, need at least {minimum}")
+    if p.size and float(np.abs(p).max()) > _MAX_COORD_M:
+        raise ScanMatchError(f"{name} has coordinates beyond ±{_MAX_COORD_M:g} m")
     return p
 
 

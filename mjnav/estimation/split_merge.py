@@ -36,7 +36,7 @@ class SplitMergeError(ValueError):
     """Malformed input to line extraction (wrong shape, non-positive thresholds)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LineSegment:
     """One extracted line.
 
@@ -67,7 +67,7 @@ class LineSegment:
         return float(np.hypot(*(self.end - self.start)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Corner:
     """Intersection of two neighbouring extracted lines.
 

@@ -33,8 +33,7 @@ def _errors(result: ScanMatchResult, truth: np.ndarray) -> tuple[float, float]:
 def test_icp_recovers_a_known_transform_of_the_same_points() -> None:
     ref = scan_points(ROOM, POSE_A)
     truth = np.array([0.12, -0.07, math.radians(4.0)])
-    scan = _transform(np.array([0.0, 0.0, 0.0]), ref)  # copy
-    # scan points expressed in the moved frame: p_scan = R(θ)ᵀ (p_ref − t)
+    # The reference points expressed in the moved frame: p_scan = R(θ)ᵀ (p_ref − t).
     c, s = math.cos(truth[2]), math.sin(truth[2])
     scan = (ref - truth[:2]) @ np.array([[c, -s], [s, c]])
     res = scan_match(ref, scan, truth + np.array([0.05, 0.03, math.radians(-2.0)]), method="icp")
@@ -135,6 +134,19 @@ def test_corridor_is_flagged_degenerate_and_keeps_the_initial_along_track_positi
     w, V = np.linalg.eigh(res.covariance[:2, :2])
     assert w[1] > 1e4 * max(w[0], 1e-30)
     assert abs(V[0, 1]) > 0.99  # the well-determined direction is across the corridor (y)
+
+
+def test_corridor_is_flagged_degenerate_for_point_to_point_icp_too() -> None:
+    a, b = (0.0, 0.0, 0.0), (0.3, 0.1, 0.05)
+    res = scan_match(scan_points(CORRIDOR, a), scan_points(CORRIDOR, b), relative(a, b), method="icp")
+    assert res.degenerate
+    assert res.covariance[0, 0] > 1e3 * res.covariance[1, 1]
+
+
+def test_far_away_coordinates_are_rejected() -> None:
+    ref = scan_points(ROOM, POSE_A)
+    with pytest.raises(ScanMatchError):
+        scan_match(ref + 1e6, ref, (0.0, 0.0, 0.0))
 
 
 def test_room_is_not_degenerate() -> None:
