@@ -78,7 +78,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "random direction, degrees with a random sign). Reported: success rate (error < 5 cm and < 1°; "
             "also < 10 cm and < 2°), median translational/rotational error over all pairs and median time "
             "per match. In corrected logs the logged poses are a SLAM solution, so the reference is itself "
-            "approximate (about a centimetre)."
+            "approximate and part of every reported error is the reference's own."
         ),
         epilog=(
             "Examples: mjnav scanmatch intel-corrected.log.gz --method plicp --limit 200; "
