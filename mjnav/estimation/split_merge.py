@@ -136,6 +136,8 @@ def _max_chord_distance(p: NDArray[np.float64]) -> tuple[int, float]:
 
 
 def _max_line_distance(p: NDArray[np.float64]) -> float:
+    if not np.any(p != p[0]):
+        return 0.0  # coincident points lie on every line
     rho, alpha, _ = fit_line(p, 1.0)
     return float(np.max(np.abs(p[:, 0] * math.cos(alpha) + p[:, 1] * math.sin(alpha) - rho)))
 
@@ -144,7 +146,7 @@ def _trim_ends(q: NDArray[np.float64], a: int, b: int, n: int) -> tuple[NDArray[
     """Drop end points that fit the rest of the piece worse than 3 × its RMS residual: the point at a split
     (nearest the corner) may belong to the neighbouring wall."""
     for _ in range(2):
-        if q.shape[0] < 4:
+        if q.shape[0] < 4 or not np.any(q[1:-1] != q[1]):
             break
         rho, alpha, _ = fit_line(q[1:-1], 1.0)
         r = q[:, 0] * math.cos(alpha) + q[:, 1] * math.sin(alpha) - rho
@@ -253,7 +255,7 @@ def split_and_merge(
     for a, b in [*pieces, *([wrap] if wrap else [])]:
         q = p[a : b + 1] if a <= b else np.concatenate((p[a:], p[: b + 1]))
         q, a, b = _trim_ends(q, a, b, n)
-        if q.shape[0] < min_points:
+        if q.shape[0] < min_points or not np.any(q != q[0]):
             continue
         rho, alpha, cov = fit_line(q, point_sigma_m)
         nrm = np.array([math.cos(alpha), math.sin(alpha)])

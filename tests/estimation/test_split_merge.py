@@ -86,6 +86,14 @@ def test_short_and_sparse_input() -> None:
     assert split_and_merge(np.array([[1.0, 0.0], [1.0, 0.1], [1.0, 0.2]])) == ()  # below min_points
 
 
+def test_repeated_points_are_not_an_error() -> None:
+    wall = [[1.0, 0.1 * i] for i in range(10)]
+    pts = np.array([[1.0, 0.0]] * 10 + wall + [[2.0, 2.0]] * 8)
+    segs = split_and_merge(pts)
+    assert len(segs) == 1 and abs(segs[0].rho - 1.0) < 1e-12
+    assert split_and_merge(np.array([[1.0, 0.0]] * 10)) == ()
+
+
 def test_bad_input_raises() -> None:
     with pytest.raises(SplitMergeError):
         split_and_merge(np.zeros((5, 3)))
