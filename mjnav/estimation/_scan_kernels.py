@@ -760,7 +760,7 @@ def neighbourhood_moments(
     ang_step: float,
 ) -> NDArray[np.float64]:
     """Covariance (3, 3) of (x, y, θ) offsets under p ∝ exp(Σ log-likelihood) over the (2·half+1)³ fine
-    candidates around (a0, r0, c0) (Olson 2009, eqs. 14–16); units metres and radians."""
+    candidates around (a0, r0, c0) (Olson 2009); units metres and radians."""
     A = rows.shape[0]
     m = 2 * half + 1
     vals = np.full(m * m * m, -np.inf)
