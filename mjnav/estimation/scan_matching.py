@@ -28,7 +28,8 @@ Methods of :func:`scan_match`:
   Multi-resolution: coarse tables hold the maximum of the fine cells they cover, so the coarse scores bound
   the fine ones and the search (branch and bound, as below) returns the exact best pose of the fine
   lattice. Accuracy is the table resolution (default 2 cm) and the angular step. Covariance from the score
-  distribution around the peak (Olson 2009, section on covariance estimation) plus the lattice's own quantisation variance.
+  distribution around the peak (Olson 2009's covariance estimate) plus the lattice's own quantisation
+  variance.
 
 :class:`CorrelativeGridMatcher` matches a scan against an occupancy grid (or any [0, 1] score table) by the
 branch and bound of Hess et al., "Real-time loop closure in 2D LIDAR SLAM" (ICRA 2016, Cartographer): a
