@@ -118,7 +118,10 @@ class Publisher:
         self.put_bytes(self._encode(msg))
 
     def put_bytes(self, payload: bytes) -> None:
-        """Publish an already-encoded CDR payload."""
+        """Publish an already-encoded CDR payload (nothing, once the bus is closing: a callback still running
+        while :meth:`Bus.close` undeclares everything must not fail on it)."""
+        if self._bus.closing:
+            return
         self._pub.put(payload)
         self._bus._count_published()
 
@@ -177,6 +180,8 @@ class Subscription:
         self._sub = bus.session.declare_subscriber(key, zenoh.handlers.Callback(self._on_sample, indirect=False))
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
+        if self._bus.closing:
+            return
         # Hot path (every message of every topic): skip the string work when the key is not a wildcard and the
         # encoding is exactly ours.
         key = str(sample.key_expr) if self._wildcard else self.key
@@ -290,6 +295,8 @@ class Bus:
         self.session = session
         #: Staged delivery (set by sim-time services): accepted messages wait until :meth:`commit`.
         self.staged = False
+        #: Set by :meth:`close`: samples still arriving are ignored and publishing does nothing.
+        self.closing = False
         self._staging: list[tuple[Subscription, str, Any]] = []
         self.namespace = namespace
         self.stats = BusStats()
@@ -311,6 +318,7 @@ class Bus:
 
     def close(self) -> None:
         """Undeclare everything this bus declared and close the session if the bus opened it."""
+        self.closing = True
         for entity in reversed(self._declared):
             try:
                 entity.close() if hasattr(entity, "close") else entity.undeclare()
