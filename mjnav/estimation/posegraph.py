@@ -346,10 +346,8 @@ def _spd_solve(a: sp.spmatrix, b: FloatArray) -> FloatArray:
     """Solve ``a x = b`` for a sparse symmetric positive-definite ``a`` with CHOLMOD (AMD ordering)."""
     a = sp.csc_matrix(a)
     factor = analyze(a, mode="simplicial", ordering_method="amd")
-    try:
-        factor.cholesky_inplace(a)
-    except CholmodNotPositiveDefiniteError as exc:
-        raise PoseGraphError("the linear system is singular: is the graph connected?") from exc
+    if not _factor_ok(factor, a, 0.0):
+        raise PoseGraphError("the linear system is singular: is the graph connected?")
     return np.asarray(factor(b), dtype=np.float64)
 
 
@@ -487,7 +485,7 @@ class _Problem:
         return float(np.sum(rho))
 
     def normal_equations(self, p: FloatArray) -> tuple[sp.csc_matrix, FloatArray, float]:
-        """Hessian (IRLS-weighted), gradient and cost at ``p``."""
+        """Half the Hessian (IRLS-weighted), half the gradient, and the cost ``Σ ρ(‖r‖²)`` at ``p``."""
         m = self.graph.num_edges
         r, s = self.residuals(p)
         rho, w = _robust(s, self.robust, self.width)
@@ -614,7 +612,8 @@ def optimize_pose_graph(
             relaxation itself is not robust to outliers).
         robust_width: kernel width δ on the error (√s), dimensionless; default √χ²₃(0.95) ≈ 2.80.
         max_iterations: iteration cap.
-        tolerance: stop when the relative cost decrease of an accepted step is below this.
+        tolerance: stop when the relative cost decrease of an accepted step is below this (or when the step is
+            below 1e-10 of the pose magnitudes).
         certify: also run :func:`certify_global_optimality` on the result (only meaningful for
             ``objective="sesync"`` without a robust kernel).
         certificate_tolerance: relative tolerance passed to the certificate.
@@ -662,9 +661,7 @@ def optimize_pose_graph(
         d = np.abs(h.data[diag_idx])
         d = np.maximum(d, 1e-12 * max(1.0, float(np.max(d))))
         hd.data[diag_idx] += lam * d
-        try:
-            factor.cholesky_inplace(hd)
-        except CholmodNotPositiveDefiniteError:
+        if not _factor_ok(factor, hd, 0.0):
             if method == "gn":
                 raise PoseGraphError("Gauss–Newton system is not positive definite; use method='lm'") from None
             lam, nu = max(lam, 1e-9) * nu, 2.0 * nu
@@ -674,7 +671,8 @@ def optimize_pose_graph(
         trial = p.copy()
         trial[1:] += step
         new_cost = problem.cost(trial)
-        predicted = 0.5 * float(delta @ (lam * d * delta - g))
+        # Model decrease of cost = Σ ρ(‖r‖²), whose gradient is 2g and (Gauss–)Newton Hessian 2H.
+        predicted = float(delta @ (lam * d * delta - g))
         if method == "gn" or (new_cost < cost and predicted > 0):
             rho = (cost - new_cost) / predicted if predicted > 0 else 0.0
             decrease = cost - new_cost
@@ -684,7 +682,8 @@ def optimize_pose_graph(
             if method == "lm":
                 lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
                 nu = 2.0
-            if abs(decrease) <= tolerance * max(cost, 1e-300):
+            small_step = float(np.max(np.abs(step))) <= 1e-10 * (1.0 + float(np.max(np.abs(p))))
+            if abs(decrease) <= tolerance * max(cost, 1e-300) or small_step:
                 converged = True
                 break
         else:
@@ -801,12 +800,17 @@ def certify_global_optimality(
 
 
 def _factor_ok(factor: Factor, a: sp.csc_matrix, shift: float) -> bool:
-    """Cholesky-factor ``a + shift·I`` into ``factor``; False when it is not positive definite."""
+    """Factor ``a + shift·I`` into ``factor``; False when it is not positive definite.
+
+    CHOLMOD's simplicial factorisation is LDLᵀ, which goes through an indefinite matrix without complaint as
+    long as no pivot is exactly zero: positive definiteness is the sign of every entry of D.
+    """
     try:
         factor.cholesky_inplace(a, beta=shift)
     except CholmodNotPositiveDefiniteError:
         return False
-    return True
+    d = factor.D()
+    return bool(np.all(d > 0.0) and np.all(np.isfinite(d)))
 
 
 def _lambda_min_negative(sr: sp.csc_matrix) -> float:
