@@ -411,25 +411,40 @@ class _Assembler:
 
     def __init__(self, edges: IntArray, n: int) -> None:
         i, j = edges[:, 0], edges[:, 1]
-        nv = 3 * (n - 1)
-        # Block (a, b) of edge e → 9 entries (3a' + r, 3b' + c), a' = a − 1; order of blocks: ii, ij, ji, jj.
-        blocks_r = np.stack([i, i, j, j], axis=1)  # (M, 4)
-        blocks_c = np.stack([i, j, i, j], axis=1)
-        rr = np.repeat(np.arange(3), 3)
-        cc = np.tile(np.arange(3), 3)
-        row = 3 * (blocks_r[:, :, None] - 1) + rr[None, None, :]  # (M, 4, 9)
-        col = 3 * (blocks_c[:, :, None] - 1) + cc[None, None, :]
-        keep = ((blocks_r != 0) & (blocks_c != 0))[:, :, None] & np.ones((1, 1, 9), dtype=bool)
-        self.keep = keep.ravel()
-        key = (row.ravel()[self.keep].astype(np.int64) * nv) + col.ravel()[self.keep]
-        unique, self.inverse = np.unique(key, return_inverse=True)
-        self.nnz = unique.size
-        r, c = unique // nv, unique % nv  # sorted by (row, col): CSR order = CSC order of the symmetric matrix
-        self.indices = c.astype(np.int32)
-        self.indptr = np.searchsorted(r, np.arange(nv + 1)).astype(np.int32)
-        self.diag = np.flatnonzero(r == c)
-        if self.diag.size != nv:
+        nb = n - 1
+        nv = 3 * nb
+        # Vertex-pair blocks of each edge, in the order ii, ij, ji, jj; blocks touching vertex 0 are dropped.
+        br = np.stack([i, i, j, j], axis=1).ravel() - 1
+        bc = np.stack([i, j, i, j], axis=1).ravel() - 1
+        kept = np.flatnonzero((br >= 0) & (bc >= 0))
+        ukey, q = np.unique(br[kept] * nb + bc[kept], return_inverse=True)
+        ur, uc = ukey // nb, ukey % nb  # unique blocks sorted by (row, col)
+        bptr = np.searchsorted(ur, np.arange(nb + 1))
+        if np.any(np.diff(bptr) == 0):
             raise PoseGraphError("the graph is disconnected: some vertex has no edge")
+        cnt = np.diff(bptr)
+        # Scalar CSR (= CSC, the matrix is symmetric): row 3r + k holds, for each block of block-row r in column
+        # order, its three entries; entry (k, l) of unique block u sits at 9·bptr[r] + 3k·cnt[r] + 3(u − bptr[r]) + l.
+        kk, ll = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
+
+        def position(u: IntArray, k: IntArray, l_: IntArray) -> IntArray:
+            r = ur[u]
+            return np.asarray(9 * bptr[r] + 3 * k * cnt[r] + 3 * (u - bptr[r]) + l_, dtype=np.int64)
+
+        nu = ukey.size
+        all_u = np.repeat(np.arange(nu), 9)
+        indices = np.empty(9 * nu, dtype=np.int32)
+        indices[position(all_u, np.tile(kk, nu), np.tile(ll, nu))] = 3 * uc[all_u] + np.tile(ll, nu)
+        indptr = np.empty(nv + 1, dtype=np.int64)
+        indptr[:-1] = (9 * bptr[:-1, None] + 3 * np.arange(3)[None, :] * cnt[:, None]).ravel()
+        indptr[-1] = 9 * nu
+        self.indices, self.indptr = indices, indptr.astype(np.int32)
+        self.nnz = 9 * nu
+        # Where each kept per-edge block entry goes, and the data slots of the diagonal.
+        self.kept = (kept[:, None] * 9 + np.arange(9)[None, :]).ravel()
+        self.slot = position(np.repeat(q, 9), np.tile(kk, q.size), np.tile(ll, q.size))
+        diag_u = np.flatnonzero(ur == uc)
+        self.diag = np.sort(position(np.repeat(diag_u, 3), np.tile(np.arange(3), nb), np.tile(np.arange(3), nb)))
         self.nv = nv
         self.n = n
         # Gradient slots 3·vertex + component for the stacked (gi; gj) entries.
@@ -437,7 +452,7 @@ class _Assembler:
 
     def matrix(self, blocks: FloatArray) -> sp.csc_matrix:
         """(M, 4, 3, 3) blocks (ii, ij, ji, jj) → the (3(N−1))² CSC matrix."""
-        data = np.bincount(self.inverse, weights=blocks.reshape(-1)[self.keep], minlength=self.nnz)
+        data = np.bincount(self.slot, weights=blocks.reshape(-1)[self.kept], minlength=self.nnz)
         return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.nv, self.nv))
 
     def vector(self, gi: FloatArray, gj: FloatArray) -> FloatArray:
@@ -655,27 +670,38 @@ def optimize_pose_graph(
     nu = 2.0
     iterations = 0
     converged = False
+    fresh = False  # does `factor` hold a factorisation of an earlier damped Hessian?
+    last_decrease = math.inf
     while iterations < max_iterations:
         iterations += 1
         hd = h.copy()
         d = np.abs(h.data[diag_idx])
         d = np.maximum(d, 1e-12 * max(1.0, float(np.max(d))))
         hd.data[diag_idx] += lam * d
-        if not _factor_ok(factor, hd, 0.0):
-            if method == "gn":
-                raise PoseGraphError("Gauss–Newton system is not positive definite; use method='lm'") from None
-            lam, nu = max(lam, 1e-9) * nu, 2.0 * nu
-            continue
-        delta = -np.asarray(factor(g), dtype=np.float64)
+        delta = None
+        if fresh and last_decrease < 1e-3 * cost:
+            # Near the optimum the Hessian changes little between steps: the previous Cholesky factor is an
+            # excellent preconditioner, and a few conjugate-gradient iterations replace a new factorisation.
+            delta = _pcg(hd, -g, factor, rtol=1e-8, maxiter=12)
+        if delta is None:
+            if not _factor_ok(factor, hd, 0.0):
+                fresh = False
+                if method == "gn":
+                    raise PoseGraphError("Gauss–Newton system is not positive definite; use method='lm'") from None
+                lam, nu = max(lam, 1e-9) * nu, 2.0 * nu
+                continue
+            fresh = True
+            delta = -np.asarray(factor(g), dtype=np.float64)
         step = delta.reshape(n - 1, 3)
         trial = p.copy()
         trial[1:] += step
         new_cost = problem.cost(trial)
         # Model decrease of cost = Σ ρ(‖r‖²), whose gradient is 2g and (Gauss–)Newton Hessian 2H.
-        predicted = float(delta @ (lam * d * delta - g))
+        predicted = -float(2.0 * (g @ delta) + delta @ (h @ delta))
         if method == "gn" or (new_cost < cost and predicted > 0):
             rho = (cost - new_cost) / predicted if predicted > 0 else 0.0
             decrease = cost - new_cost
+            last_decrease = decrease
             p = trial
             p[:, 2] = _wrap(p[:, 2])
             h, g, cost = problem.normal_equations(p)
@@ -797,6 +823,34 @@ def certify_global_optimality(
     except ArpackNoConvergence:
         lam_min = -shift  # the factor still proves λ_min > −shift
     return OptimalityCertificate(True, lam_min, tol_abs, stationarity)
+
+
+def _pcg(a: sp.csc_matrix, b: FloatArray, factor: Factor, rtol: float, maxiter: int) -> FloatArray | None:
+    """Solve ``a x = b`` (a SPD) by conjugate gradients preconditioned with ``factor`` (a factorisation of a
+    nearby matrix); None when it does not reach ``‖b − a x‖ ≤ rtol ‖b‖`` within ``maxiter`` iterations."""
+    x = np.asarray(factor(b), dtype=np.float64)
+    r = b - a @ x
+    bound = rtol * float(np.linalg.norm(b))
+    if float(np.linalg.norm(r)) <= bound:
+        return x
+    z = np.asarray(factor(r), dtype=np.float64)
+    direction = z.copy()
+    rz = float(r @ z)
+    for _ in range(maxiter):
+        ad = a @ direction
+        curvature = float(direction @ ad)
+        if curvature <= 0.0:
+            return None  # not positive definite along this direction: let the caller factor
+        alpha = rz / curvature
+        x += alpha * direction
+        r -= alpha * ad
+        if float(np.linalg.norm(r)) <= bound:
+            return x
+        z = np.asarray(factor(r), dtype=np.float64)
+        rz_new = float(r @ z)
+        direction = z + (rz_new / rz) * direction
+        rz = rz_new
+    return None
 
 
 def _factor_ok(factor: Factor, a: sp.csc_matrix, shift: float) -> bool:
