@@ -379,27 +379,43 @@ def _chordal_guess(graph: PoseGraph) -> FloatArray:
     if np.any(np.abs(zc) < 1e-12):
         raise PoseGraphError("chordal relaxation gave a zero rotation; use init='graph'")
     theta = np.angle(zc)
-    # Translations: Laplacian L p = b with b from the rotated measurements.
-    ci, si = np.cos(theta[i]), np.sin(theta[i])
-    tx = ci * z[:, 0] - si * z[:, 1]
-    ty = si * z[:, 0] + ci * z[:, 1]
-    lap = sp.csr_matrix(
-        (np.concatenate([tau, tau, -tau, -tau]), (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
-        shape=(n, n),
-    )
-    b = np.zeros((n, 2))
-    np.add.at(b[:, 0], j, tau * tx)
-    np.add.at(b[:, 0], i, -tau * tx)
-    np.add.at(b[:, 1], j, tau * ty)
-    np.add.at(b[:, 1], i, -tau * ty)
-    p0 = graph.poses[0, :2]
-    b = b[1:] - np.asarray(lap[1:, 0].toarray()) * p0[None, :]
-    t = _spd_solve(lap[1:, 1:], b)
     out = np.empty((n, 3))
     out[0] = graph.poses[0]
-    out[1:, :2] = t.reshape(n - 1, 2)
     out[:, 2] = theta
+    out[1:, :2] = _Translations(graph, tau).solve(theta)
     return out
+
+
+class _Translations:
+    """The translations minimising F for given rotations: ``Σ τ |p_j − p_i − R_i t_ij|²`` is a weighted graph
+    Laplacian ``L p = b(θ)`` whose matrix does not depend on the rotations, so one factorisation serves every θ."""
+
+    def __init__(self, graph: PoseGraph, tau: FloatArray) -> None:
+        n = graph.num_vertices
+        i, j = graph.edges[:, 0], graph.edges[:, 1]
+        lap = sp.csr_matrix(
+            (np.concatenate([tau, tau, -tau, -tau]), (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
+            shape=(n, n),
+        )
+        self.graph, self.tau, self.n = graph, tau, n
+        self.anchor = np.asarray(lap[1:, 0].toarray()) * graph.poses[0, :2][None, :]  # vertex 0 held
+        reduced = sp.csc_matrix(lap[1:, 1:])
+        self.factor = analyze(reduced, mode="simplicial", ordering_method="amd")
+        if not _factor_ok(self.factor, reduced, 0.0):
+            raise PoseGraphError("the translation Laplacian is singular: is the graph connected?")
+
+    def solve(self, theta: FloatArray) -> FloatArray:
+        """(N − 1, 2) translations of vertices 1…N−1 (metres) for rotations θ ((N,) radians)."""
+        g = self.graph
+        i, j = g.edges[:, 0], g.edges[:, 1]
+        z = g.measurements
+        ci, si = np.cos(theta[i]), np.sin(theta[i])
+        wx = self.tau * (ci * z[:, 0] - si * z[:, 1])
+        wy = self.tau * (si * z[:, 0] + ci * z[:, 1])
+        b = np.empty((self.n, 2))
+        b[:, 0] = np.bincount(j, weights=wx, minlength=self.n) - np.bincount(i, weights=wx, minlength=self.n)
+        b[:, 1] = np.bincount(j, weights=wy, minlength=self.n) - np.bincount(i, weights=wy, minlength=self.n)
+        return np.asarray(self.factor(b[1:] - self.anchor), dtype=np.float64).reshape(self.n - 1, 2)
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -663,6 +679,9 @@ def optimize_pose_graph(
     use_chordal = init == "chordal" or (init == "auto" and robust is None)
     p = _chordal_guess(graph) if use_chordal else graph.poses.copy()
     problem = _Problem(graph, objective, robust, robust_width)
+    translations = None
+    if objective == "sesync" and robust is None:
+        translations = _Translations(graph, problem.tau)
     h, g, cost = problem.normal_equations(p)
     factor = analyze(h, mode="simplicial", ordering_method="amd")
     diag_idx = problem.asm.diag
@@ -672,6 +691,7 @@ def optimize_pose_graph(
     converged = False
     fresh = False  # does `factor` hold a factorisation of an earlier damped Hessian?
     last_decrease = math.inf
+    retry_pcg_at = 0
     while iterations < max_iterations:
         iterations += 1
         hd = h.copy()
@@ -679,10 +699,12 @@ def optimize_pose_graph(
         d = np.maximum(d, 1e-12 * max(1.0, float(np.max(d))))
         hd.data[diag_idx] += lam * d
         delta = None
-        if fresh and last_decrease < 1e-3 * cost:
+        if fresh and last_decrease < 1e-3 * cost and iterations >= retry_pcg_at:
             # Near the optimum the Hessian changes little between steps: the previous Cholesky factor is an
             # excellent preconditioner, and a few conjugate-gradient iterations replace a new factorisation.
             delta = _pcg(hd, -g, factor, rtol=1e-8, maxiter=12)
+            if delta is None:
+                retry_pcg_at = iterations + 3  # the Hessian still moves too much: factor for a while
         if delta is None:
             if not _factor_ok(factor, hd, 0.0):
                 fresh = False
@@ -695,9 +717,14 @@ def optimize_pose_graph(
         step = delta.reshape(n - 1, 3)
         trial = p.copy()
         trial[1:] += step
+        if translations is not None:
+            # Variable projection (Kaufman's form): keep the Newton step's rotations and move the translations to
+            # their exact optimum for them; F is quadratic in the translations, so this only lowers the cost and
+            # cuts the iterations of long chains (ais2klinik) several-fold.
+            trial[1:, :2] = translations.solve(trial[:, 2])
         new_cost = problem.cost(trial)
         # Model decrease of cost = Σ ρ(‖r‖²), whose gradient is 2g and (Gauss–)Newton Hessian 2H.
-        predicted = -float(2.0 * (g @ delta) + delta @ (h @ delta))
+        predicted = -(2.0 * _dot(g, delta) + _dot(delta, h @ delta))
         if method == "gn" or (new_cost < cost and predicted > 0):
             rho = (cost - new_cost) / predicted if predicted > 0 else 0.0
             decrease = cost - new_cost
@@ -825,29 +852,35 @@ def certify_global_optimality(
     return OptimalityCertificate(True, lam_min, tol_abs, stationarity)
 
 
+def _dot(a: FloatArray, b: FloatArray) -> float:
+    """Inner product without BLAS: on a busy machine OpenBLAS's worker threads, woken by a level-1 call and left
+    spinning after it, slow the sparse solves around it by an order of magnitude."""
+    return float(np.sum(a * b))
+
+
 def _pcg(a: sp.csc_matrix, b: FloatArray, factor: Factor, rtol: float, maxiter: int) -> FloatArray | None:
     """Solve ``a x = b`` (a SPD) by conjugate gradients preconditioned with ``factor`` (a factorisation of a
     nearby matrix); None when it does not reach ``‖b − a x‖ ≤ rtol ‖b‖`` within ``maxiter`` iterations."""
     x = np.asarray(factor(b), dtype=np.float64)
     r = b - a @ x
-    bound = rtol * float(np.linalg.norm(b))
-    if float(np.linalg.norm(r)) <= bound:
+    bound2 = rtol * rtol * _dot(b, b)
+    if _dot(r, r) <= bound2:
         return x
     z = np.asarray(factor(r), dtype=np.float64)
     direction = z.copy()
-    rz = float(r @ z)
+    rz = _dot(r, z)
     for _ in range(maxiter):
         ad = a @ direction
-        curvature = float(direction @ ad)
+        curvature = _dot(direction, ad)
         if curvature <= 0.0:
             return None  # not positive definite along this direction: let the caller factor
         alpha = rz / curvature
         x += alpha * direction
         r -= alpha * ad
-        if float(np.linalg.norm(r)) <= bound:
+        if _dot(r, r) <= bound2:
             return x
         z = np.asarray(factor(r), dtype=np.float64)
-        rz_new = float(r @ z)
+        rz_new = _dot(r, z)
         direction = z + (rz_new / rz) * direction
         rz = rz_new
     return None
