@@ -118,14 +118,20 @@ def _fill_missing(graph: PoseGraph, known: np.ndarray) -> FloatArray:
     return poses
 
 
-def write_g2o(path: str | PathLike[str], graph: PoseGraph, poses: FloatArray | None = None) -> None:
+def write_g2o(
+    path: str | PathLike[str] | PoseGraph, graph: PoseGraph | str | PathLike[str], poses: FloatArray | None = None
+) -> None:
     """Write a pose graph as g2o text (full precision: reading it back gives the same numbers).
 
     Args:
-        path: the output file.
+        path: the output file (``write_g2o(graph, path)`` is accepted too).
         graph: the pose graph (ids, edges, measurements, information).
         poses: (N, 3) poses to write instead of the graph's own (e.g. an optimiser's result).
     """
+    if isinstance(path, PoseGraph) and not isinstance(graph, PoseGraph):
+        path, graph = graph, path
+    if not isinstance(graph, PoseGraph) or isinstance(path, PoseGraph):
+        raise PoseGraphError("write_g2o needs a path and a PoseGraph")
     p = graph.poses if poses is None else np.asarray(poses, dtype=np.float64)
     if p.shape != graph.poses.shape:
         raise PoseGraphError(f"poses must be {graph.poses.shape}, got {p.shape}")

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -192,6 +192,11 @@ class PoseGraphResult:
     certificate: OptimalityCertificate | None = None
     certificate_time_s: float = 0.0
 
+    @property
+    def time(self) -> float:
+        """Alias of ``time_s`` (seconds)."""
+        return self.time_s
+
 
 # --------------------------------------------------------------------------------------------------------------------
 # Small helpers
@@ -351,7 +356,7 @@ def _spd_solve(a: sp.spmatrix, b: FloatArray) -> FloatArray:
     return np.asarray(factor(b), dtype=np.float64)
 
 
-def _chordal_guess(graph: PoseGraph) -> FloatArray:
+def _chordal_guess(graph: PoseGraph, translations: _Translations | None = None) -> FloatArray:
     """Carlone et al.'s chordal initialisation in complex form, vertex 0 held at the graph's pose 0.
 
     Rotations ``z_k = e^{iθ_k}``: minimise ``Σ κ |z_j − z_i e^{i dθ}|²`` over unconstrained complex ``z`` (a linear
@@ -382,7 +387,7 @@ def _chordal_guess(graph: PoseGraph) -> FloatArray:
     out = np.empty((n, 3))
     out[0] = graph.poses[0]
     out[:, 2] = theta
-    out[1:, :2] = _Translations(graph, tau).solve(theta)
+    out[1:, :2] = (translations or _Translations(graph, tau)).solve(theta)
     return out
 
 
@@ -624,7 +629,7 @@ def optimize_pose_graph(
     init: Init = "auto",
     robust_width: float = DEFAULT_ROBUST_WIDTH,
     max_iterations: int = 100,
-    tolerance: float = 1e-12,
+    tolerance: float = 1e-9,
     certify: bool = False,
     certificate_tolerance: float = 1e-6,
 ) -> PoseGraphResult:
@@ -676,12 +681,14 @@ def optimize_pose_graph(
             graph.poses.copy(), 0, time.perf_counter() - start, initial_chi2, initial_f, initial_chi2, initial_f,
             0.0, True,
         )  # fmt: skip
-    use_chordal = init == "chordal" or (init == "auto" and robust is None)
-    p = _chordal_guess(graph) if use_chordal else graph.poses.copy()
     problem = _Problem(graph, objective, robust, robust_width)
+    use_chordal = init == "chordal" or (init == "auto" and robust is None)
     translations = None
-    if objective == "sesync" and robust is None:
+    if (objective == "sesync" and robust is None) or use_chordal:
         translations = _Translations(graph, problem.tau)
+    p = _chordal_guess(graph, translations) if use_chordal else graph.poses.copy()
+    if objective != "sesync" or robust is not None:
+        translations = None  # variable projection only where F is the cost: quadratic in the translations
     h, g, cost = problem.normal_equations(p)
     factor = analyze(h, mode="simplicial", ordering_method="amd")
     diag_idx = problem.asm.diag
@@ -761,9 +768,7 @@ def optimize_pose_graph(
     if certify:
         t0 = time.perf_counter()
         cert = certify_global_optimality(graph, p, tolerance=certificate_tolerance)
-        result = PoseGraphResult(
-            **{**result.__dict__, "certificate": cert, "certificate_time_s": time.perf_counter() - t0}
-        )
+        result = replace(result, certificate=cert, certificate_time_s=time.perf_counter() - t0)
     return result
 
 

@@ -64,6 +64,8 @@ def test_round_trip_is_exact(tmp_path: Path) -> None:
     other = graph.poses + 1.0
     write_g2o(path, graph, other)
     np.testing.assert_array_equal(read_g2o(path).poses, other)
+    write_g2o(graph, path)  # either argument order
+    np.testing.assert_array_equal(read_g2o(path).poses, graph.poses)
 
 
 def test_missing_vertices_compose_odometry(tmp_path: Path) -> None:
