@@ -447,15 +447,13 @@ class _Assembler:
         # Scalar CSR (= CSC, the matrix is symmetric): row 3r + k holds, for each block of block-row r in column
         # order, its three entries; entry (k, l) of unique block u sits at 9·bptr[r] + 3k·cnt[r] + 3(u − bptr[r]) + l.
         kk, ll = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
-
-        def position(u: IntArray, k: IntArray, l_: IntArray) -> IntArray:
-            r = ur[u]
-            return np.asarray(9 * bptr[r] + 3 * k * cnt[r] + 3 * (u - bptr[r]) + l_, dtype=np.int64)
-
         nu = ukey.size
-        all_u = np.repeat(np.arange(nu), 9)
+        # Per unique block: where its entry (0, 0) goes and the stride between its rows; then (nu, 9) positions.
+        base = 9 * bptr[ur] + 3 * (np.arange(nu) - bptr[ur])
+        stride = 3 * cnt[ur]
+        pos = base[:, None] + stride[:, None] * kk[None, :] + ll[None, :]  # (nu, 9)
         indices = np.empty(9 * nu, dtype=np.int32)
-        indices[position(all_u, np.tile(kk, nu), np.tile(ll, nu))] = 3 * uc[all_u] + np.tile(ll, nu)
+        indices[pos.ravel()] = (3 * uc[:, None] + ll[None, :]).ravel()
         indptr = np.empty(nv + 1, dtype=np.int64)
         indptr[:-1] = (9 * bptr[:-1, None] + 3 * np.arange(3)[None, :] * cnt[:, None]).ravel()
         indptr[-1] = 9 * nu
@@ -463,9 +461,8 @@ class _Assembler:
         self.nnz = 9 * nu
         # Where each kept per-edge block entry goes, and the data slots of the diagonal.
         self.kept = (kept[:, None] * 9 + np.arange(9)[None, :]).ravel()
-        self.slot = position(np.repeat(q, 9), np.tile(kk, q.size), np.tile(ll, q.size))
-        diag_u = np.flatnonzero(ur == uc)
-        self.diag = np.sort(position(np.repeat(diag_u, 3), np.tile(np.arange(3), nb), np.tile(np.arange(3), nb)))
+        self.slot = pos[q].ravel()
+        self.diag = np.sort(pos[ur == uc][:, [0, 4, 8]].ravel())
         self.nv = nv
         self.n = n
         # Gradient slots 3·vertex + component for the stacked (gi; gj) entries.
