@@ -517,21 +517,27 @@ class _Problem:
         rho, _ = _robust(s, self.robust, self.width)
         return float(np.sum(rho))
 
-    def normal_equations(self, p: FloatArray) -> tuple[sp.csc_matrix, FloatArray, float]:
-        """Half the Hessian (IRLS-weighted), half the gradient, and the cost ``Σ ρ(‖r‖²)`` at ``p``."""
+    def normal_equations(self, p: FloatArray) -> tuple[sp.csc_matrix, sp.csc_matrix, FloatArray, float]:
+        """Half the Hessian twice — Gauss–Newton (positive semidefinite) and exact Newton (with the residuals'
+        second derivatives) —, half the gradient, and the cost ``Σ ρ(‖r‖²)`` at ``p`` (IRLS-weighted)."""
         m = self.graph.num_edges
         r, s = self.residuals(p)
         rho, w = _robust(s, self.robust, self.width)
         blocks = np.zeros((m, 4, 3, 3))  # ii, ij, ji, jj
+        second = np.zeros((m, 4, 3, 3))
         if self.objective == "sesync":
-            gi, gj = self._sesync_blocks(p, r, w, blocks)
+            gi, gj = self._sesync_blocks(p, r, w, blocks, second)
         else:
-            gi, gj = self._g2o_blocks(p, r, w, blocks)
+            gi, gj = self._g2o_blocks(p, r, w, blocks, second)
         blocks[:, 2] = np.swapaxes(blocks[:, 1], 1, 2)
-        return self.asm.matrix(blocks), self.asm.vector(gi, gj), float(np.sum(rho))
+        second[:, 2] = np.swapaxes(second[:, 1], 1, 2)
+        h_gn = self.asm.matrix(blocks)
+        h_exact = h_gn.copy()
+        h_exact.data += self.asm.matrix(second).data
+        return h_gn, h_exact, self.asm.vector(gi, gj), float(np.sum(rho))
 
     def _sesync_blocks(
-        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray
+        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray, second: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
         """Exact Newton blocks of F, written out (the Jacobians are mostly constant ±√τ).
 
@@ -561,7 +567,8 @@ class _Problem:
         hi[:, 1, 1] = wst2
         hi[:, 0, 2] = hi[:, 2, 0] = -w * st * b0
         hi[:, 1, 2] = hi[:, 2, 1] = -w * st * b1
-        hi[:, 2, 2] = w * (sk2 + b0 * b0 + b1 * b1) + second_i
+        hi[:, 2, 2] = w * (sk2 + b0 * b0 + b1 * b1)
+        second[:, 0, 2, 2] = second_i
         hij = blocks[:, 1]
         hij[:, 0, 0] = -wst2
         hij[:, 1, 1] = -wst2
@@ -571,7 +578,8 @@ class _Problem:
         hj = blocks[:, 3]
         hj[:, 0, 0] = wst2
         hj[:, 1, 1] = wst2
-        hj[:, 2, 2] = w * sk2 + second_j
+        hj[:, 2, 2] = w * sk2
+        second[:, 3, 2, 2] = second_j
         gi = np.stack(
             [-st * wr[:, 2], -st * wr[:, 3], a0 * wr[:, 0] + a1 * wr[:, 1] + b0 * wr[:, 2] + b1 * wr[:, 3]], 1
         )
@@ -579,9 +587,11 @@ class _Problem:
         return gi, gj
 
     def _g2o_blocks(
-        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray
+        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray, second: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """Gauss–Newton blocks of g2o's χ² (its residuals vanish at a consistent graph)."""
+        """Gauss–Newton blocks of g2o's χ² (batched 3×3 products); ``second`` stays zero. Its exact Hessian is often
+        indefinite away from the optimum (wrapped angles, large translational information), and measured on the
+        SE-Sync graphs it took more iterations, not fewer."""
         g = self.graph
         i, j = g.edges[:, 0], g.edges[:, 1]
         z = g.measurements
@@ -687,7 +697,7 @@ def optimize_pose_graph(
     p = _chordal_guess(graph, translations) if use_chordal else graph.poses.copy()
     if objective != "sesync" or robust is not None:
         translations = None  # variable projection only where F is the cost: quadratic in the translations
-    h, g, cost = problem.normal_equations(p)
+    h_gn, h, g, cost = problem.normal_equations(p)
     factor = analyze(h, mode="simplicial", ordering_method="amd")
     diag_idx = problem.asm.diag
     lam = 1e-6 if method == "lm" else 0.0
@@ -699,9 +709,10 @@ def optimize_pose_graph(
     retry_pcg_at = 0
     while iterations < max_iterations:
         iterations += 1
-        hd = h.copy()
-        d = np.abs(h.data[diag_idx])
+        d = np.abs(h_gn.data[diag_idx])
         d = np.maximum(d, 1e-12 * max(1.0, float(np.max(d))))
+        model = h  # exact Newton where it is positive definite, Gauss–Newton where it is not
+        hd = h.copy()
         hd.data[diag_idx] += lam * d
         delta = None
         if fresh and last_decrease < 1e-3 * cost and iterations >= retry_pcg_at:
@@ -711,7 +722,13 @@ def optimize_pose_graph(
             if delta is None:
                 retry_pcg_at = iterations + 3  # the Hessian still moves too much: factor for a while
         if delta is None:
-            if not _factor_ok(factor, hd, 0.0):
+            ok = _factor_ok(factor, hd, 0.0)
+            if not ok:
+                model = h_gn
+                hd = h_gn.copy()
+                hd.data[diag_idx] += lam * d
+                ok = _factor_ok(factor, hd, 0.0)
+            if not ok:
                 fresh = False
                 if method == "gn":
                     raise PoseGraphError("Gauss–Newton system is not positive definite; use method='lm'") from None
@@ -729,14 +746,14 @@ def optimize_pose_graph(
             trial[1:, :2] = translations.solve(trial[:, 2])
         new_cost = problem.cost(trial)
         # Model decrease of cost = Σ ρ(‖r‖²), whose gradient is 2g and (Gauss–)Newton Hessian 2H.
-        predicted = -(2.0 * _dot(g, delta) + _dot(delta, h @ delta))
+        predicted = -(2.0 * _dot(g, delta) + _dot(delta, model @ delta))
         if method == "gn" or (new_cost < cost and predicted > 0):
             rho = (cost - new_cost) / predicted if predicted > 0 else 0.0
             decrease = cost - new_cost
             last_decrease = decrease
             p = trial
             p[:, 2] = _wrap(p[:, 2])
-            h, g, cost = problem.normal_equations(p)
+            h_gn, h, g, cost = problem.normal_equations(p)
             if method == "lm":
                 lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
                 nu = 2.0

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mjnav.estimation import g2o_chi2, odometry_guess, optimize_pose_graph, read_g2o
@@ -37,3 +38,19 @@ def test_published_optimum_and_certificate(refdata: Path, name: str) -> None:
 @pytest.mark.slow
 def test_city10000(refdata: Path) -> None:
     check(refdata, "city10000")
+
+
+def test_g2o_objective_matches_python_graphslam_on_input_intel(refdata: Path) -> None:
+    """Carlone's 1228-pose Intel graph and the optimum python-graphslam's tests assert: its χ² convention differs
+    from g2o's (refdata README), so the poses are compared; minimising g2o's χ² lands within 3 cm and 1e-3 rad."""
+    graph = read_g2o(refdata / "posegraph" / "input_INTEL.g2o")
+    ref = read_g2o(refdata / "posegraph" / "input_INTEL_optimized_by_python-graphslam.g2o")
+    res = optimize_pose_graph(graph, objective="g2o", init="chordal")
+    assert res.converged
+    assert res.chi2 < g2o_chi2(graph, ref.poses)  # at least as good as the reference under g2o's convention
+    assert float(np.max(np.hypot(*(res.poses[:, :2] - ref.poses[:, :2]).T))) < 0.03
+    dth = np.remainder(res.poses[:, 2] - ref.poses[:, 2] + np.pi, 2 * np.pi) - np.pi
+    assert float(np.max(np.abs(dth))) < 1e-3
+    # Minimising F instead gives other poses (F weighs translations isotropically) and a lower F.
+    res_f = optimize_pose_graph(graph)
+    assert res_f.sesync_objective < res.sesync_objective
