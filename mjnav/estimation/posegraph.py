@@ -512,33 +512,37 @@ class _Problem:
         e = _g2o_errors(self.graph, p)
         return e, np.sum(e * (self.graph.information @ e[:, :, None])[:, :, 0], axis=1)
 
-    def cost(self, p: FloatArray) -> float:
-        _, s = self.residuals(p)
+    def cost(self, p: FloatArray) -> tuple[float, tuple[FloatArray, FloatArray]]:
+        """The cost ``Σ ρ(‖r‖²)`` at ``p``, and the residuals (to hand to :meth:`normal_equations`)."""
+        r, s = self.residuals(p)
         rho, _ = _robust(s, self.robust, self.width)
-        return float(np.sum(rho))
+        return float(np.sum(rho)), (r, s)
 
-    def normal_equations(self, p: FloatArray) -> tuple[sp.csc_matrix, sp.csc_matrix, FloatArray, float]:
+    def normal_equations(
+        self, p: FloatArray, residuals: tuple[FloatArray, FloatArray] | None = None
+    ) -> tuple[sp.csc_matrix, sp.csc_matrix, FloatArray, float]:
         """Half the Hessian twice — Gauss–Newton (positive semidefinite) and exact Newton (with the residuals'
         second derivatives) —, half the gradient, and the cost ``Σ ρ(‖r‖²)`` at ``p`` (IRLS-weighted)."""
         m = self.graph.num_edges
-        r, s = self.residuals(p)
+        r, s = self.residuals(p) if residuals is None else residuals
         rho, w = _robust(s, self.robust, self.width)
         blocks = np.zeros((m, 4, 3, 3))  # ii, ij, ji, jj
-        second = np.zeros((m, 4, 3, 3))
         if self.objective == "sesync":
-            gi, gj = self._sesync_blocks(p, r, w, blocks, second)
+            gi, gj, second = self._sesync_blocks(p, r, w, blocks)
         else:
-            gi, gj = self._g2o_blocks(p, r, w, blocks, second)
+            gi, gj = self._g2o_blocks(p, r, w, blocks)
+            second = None
         blocks[:, 2] = np.swapaxes(blocks[:, 1], 1, 2)
-        second[:, 2] = np.swapaxes(second[:, 1], 1, 2)
         h_gn = self.asm.matrix(blocks)
-        h_exact = h_gn.copy()
-        h_exact.data += self.asm.matrix(second).data
+        h_exact = h_gn
+        if second is not None:
+            h_exact = h_gn.copy()
+            h_exact.data[self.asm.diag[2::3]] += second[1:]  # θθ entries of vertices 1…N−1
         return h_gn, h_exact, self.asm.vector(gi, gj), float(np.sum(rho))
 
     def _sesync_blocks(
-        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray, second: FloatArray
-    ) -> tuple[FloatArray, FloatArray]:
+        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Exact Newton blocks of F, written out (the Jacobians are mostly constant ±√τ).
 
         Residual Jacobians: vertex i ``[[0,0,A0],[0,0,A1],[−√τ,0,B0],[0,−√τ,B1]]``, vertex j
@@ -568,7 +572,6 @@ class _Problem:
         hi[:, 0, 2] = hi[:, 2, 0] = -w * st * b0
         hi[:, 1, 2] = hi[:, 2, 1] = -w * st * b1
         hi[:, 2, 2] = w * (sk2 + b0 * b0 + b1 * b1)
-        second[:, 0, 2, 2] = second_i
         hij = blocks[:, 1]
         hij[:, 0, 0] = -wst2
         hij[:, 1, 1] = -wst2
@@ -579,17 +582,18 @@ class _Problem:
         hj[:, 0, 0] = wst2
         hj[:, 1, 1] = wst2
         hj[:, 2, 2] = w * sk2
-        second[:, 3, 2, 2] = second_j
+        n = self.graph.num_vertices
+        second = np.bincount(i, weights=second_i, minlength=n) + np.bincount(j, weights=second_j, minlength=n)
         gi = np.stack(
             [-st * wr[:, 2], -st * wr[:, 3], a0 * wr[:, 0] + a1 * wr[:, 1] + b0 * wr[:, 2] + b1 * wr[:, 3]], 1
         )
         gj = np.stack([st * wr[:, 2], st * wr[:, 3], c0 * wr[:, 0] + c1 * wr[:, 1]], 1)
-        return gi, gj
+        return gi, gj, np.asarray(second, dtype=np.float64)
 
     def _g2o_blocks(
-        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray, second: FloatArray
+        self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """Gauss–Newton blocks of g2o's χ² (batched 3×3 products); ``second`` stays zero. Its exact Hessian is often
+        """Gauss–Newton blocks of g2o's χ² (batched 3×3 products). Its exact Hessian is often
         indefinite away from the optimum (wrapped angles, large translational information), and measured on the
         SE-Sync graphs it took more iterations, not fewer."""
         g = self.graph
@@ -718,7 +722,7 @@ def optimize_pose_graph(
         if fresh and last_decrease < 1e-3 * cost and iterations >= retry_pcg_at:
             # Near the optimum the Hessian changes little between steps: the previous Cholesky factor is an
             # excellent preconditioner, and a few conjugate-gradient iterations replace a new factorisation.
-            delta = _pcg(hd, -g, factor, rtol=1e-8, maxiter=12)
+            delta = _pcg(hd, -g, factor, rtol=1e-6, maxiter=12)
             if delta is None:
                 retry_pcg_at = iterations + 3  # the Hessian still moves too much: factor for a while
         if delta is None:
@@ -744,7 +748,7 @@ def optimize_pose_graph(
             # their exact optimum for them; F is quadratic in the translations, so this only lowers the cost and
             # cuts the iterations of long chains (ais2klinik) several-fold.
             trial[1:, :2] = translations.solve(trial[:, 2])
-        new_cost = problem.cost(trial)
+        new_cost, trial_residuals = problem.cost(trial)
         # Model decrease of cost = Σ ρ(‖r‖²), whose gradient is 2g and (Gauss–)Newton Hessian 2H.
         predicted = -(2.0 * _dot(g, delta) + _dot(delta, model @ delta))
         if method == "gn" or (new_cost < cost and predicted > 0):
@@ -752,15 +756,16 @@ def optimize_pose_graph(
             decrease = cost - new_cost
             last_decrease = decrease
             p = trial
-            p[:, 2] = _wrap(p[:, 2])
-            h_gn, h, g, cost = problem.normal_equations(p)
-            if method == "lm":
-                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                nu = 2.0
+            p[:, 2] = _wrap(p[:, 2])  # residuals are 2π-periodic in θ: trial_residuals still hold
+            cost = new_cost
             small_step = float(np.max(np.abs(step))) <= 1e-10 * (1.0 + float(np.max(np.abs(p))))
             if abs(decrease) <= tolerance * max(cost, 1e-300) or small_step:
                 converged = True
                 break
+            h_gn, h, g, cost = problem.normal_equations(p, trial_residuals)
+            if method == "lm":
+                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                nu = 2.0
         else:
             lam *= nu
             nu *= 2.0
@@ -777,7 +782,7 @@ def optimize_pose_graph(
         sesync_objective=sesync_objective(graph, p),
         initial_chi2=initial_chi2,
         initial_sesync_objective=initial_f,
-        cost=problem.cost(p),
+        cost=problem.cost(p)[0],
         converged=converged,
     )
     if certify:

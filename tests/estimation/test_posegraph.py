@@ -162,13 +162,13 @@ def test_gradient_and_hessian_match_finite_differences(objective: str, robust: s
     problem = _Problem(graph, objective, robust, 1.0)  # type: ignore[arg-type]
     h_gn, h, g, cost = problem.normal_equations(p)
     assert np.all(np.linalg.eigvalsh(h_gn.toarray()) > -1e-9)  # Gauss–Newton's half: positive semidefinite
-    assert cost == pytest.approx(problem.cost(p))
+    assert cost == pytest.approx(problem.cost(p)[0])
     eps = 1e-6
     num = np.zeros(g.size)
     for k in range(g.size):
         dp = np.zeros_like(p)
         dp[1:].flat[k] = eps
-        num[k] = (problem.cost(p + dp) - problem.cost(p - dp)) / (2 * eps)
+        num[k] = (problem.cost(p + dp)[0] - problem.cost(p - dp)[0]) / (2 * eps)
     np.testing.assert_allclose(2 * g, num, rtol=1e-5, atol=1e-6)  # cost = Σ ρ(‖r‖²): g is half
     if objective == "sesync" and robust is None:  # exact Newton: H is the true Hessian of F
         hd = h.toarray()
