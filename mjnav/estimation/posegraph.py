@@ -11,11 +11,21 @@ matrix ``Ω`` (inverse covariance, in the order x, y, θ). Two objectives are re
 
 :func:`optimize_pose_graph` minimises one of them (``objective="sesync"`` by default, the objective whose global
 optimum SE-Sync certifies) from a chordal initialisation (Carlone et al., ICRA 2015: relax the rotations to
-unconstrained unit-free complex numbers, solve the linear least squares, project, then solve the translations) by
-Levenberg–Marquardt on the poses, with the Hessian assembled in one vectorised scatter and factored by CHOLMOD's
-sparse Cholesky under a fill-reducing (AMD) ordering that is computed once. :func:`certify_global_optimality` runs
-SE-Sync's verification: with ``x`` the poses as complex numbers, ``F = xᴴ M x``; at a critical point ``M x = Λ x``
-on the rotation block, and ``S = M − diag(0, Λ) ⪰ 0`` proves ``x`` is a global minimiser of ``F``.
+unconstrained complex numbers, solve the linear least squares, project onto the unit circle, then solve the
+translations) by Levenberg–Marquardt on the poses:
+
+* the Hessian is assembled in one vectorised scatter into a CSC pattern fixed at set-up and factored by CHOLMOD's
+  sparse Cholesky under a fill-reducing (AMD) ordering analysed once;
+* on F the steps are exact Newton (F's chordal residuals make Gauss–Newton converge only linearly), falling back to
+  Gauss–Newton where the exact Hessian is not positive definite;
+* on F, after each step the translations move to their exact optimum for the new rotations (F is quadratic in them:
+  one solve with a Laplacian factored once; Kaufman's variable projection);
+* near the optimum the previous factor preconditions a few conjugate-gradient iterations instead of a new
+  factorisation.
+
+:func:`certify_global_optimality` runs SE-Sync's verification: with ``x`` the poses as complex numbers,
+``F = xᴴ M x``; at a critical point ``M x = Λ x`` on the rotation block, and ``S = M − diag(0, Λ) ⪰ 0`` proves ``x``
+is a global minimiser of ``F``.
 """
 
 from __future__ import annotations
@@ -86,10 +96,11 @@ class PoseGraph:
     ids: IntArray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
 
     def __post_init__(self) -> None:
-        poses = np.ascontiguousarray(self.poses, dtype=np.float64)
-        edges = np.ascontiguousarray(self.edges, dtype=np.int64)
-        meas = np.ascontiguousarray(self.measurements, dtype=np.float64)
-        info = np.ascontiguousarray(self.information, dtype=np.float64)
+        # Own copies, made read-only (the caller's arrays stay writable and cannot change the graph).
+        poses = np.array(self.poses, dtype=np.float64, order="C")
+        edges = np.array(self.edges, dtype=np.int64, order="C")
+        meas = np.array(self.measurements, dtype=np.float64, order="C")
+        info = np.array(self.information, dtype=np.float64, order="C")
         if poses.ndim != 2 or poses.shape[1] != 3 or poses.shape[0] < 1:
             raise PoseGraphError(f"poses must be (N, 3) with N >= 1, got {poses.shape}")
         n = poses.shape[0]
@@ -117,7 +128,7 @@ class PoseGraph:
         if np.size(self.ids) == 0:
             ids = np.arange(n, dtype=np.int64)
         else:
-            ids = np.ascontiguousarray(self.ids, dtype=np.int64)
+            ids = np.array(self.ids, dtype=np.int64, order="C")
             if ids.shape != (n,):
                 raise PoseGraphError(f"ids must be ({n},), got {ids.shape}")
             if np.unique(ids).size != n:
@@ -856,18 +867,18 @@ def certify_global_optimality(
     scale = max(1.0, float(np.max(np.abs(m.diagonal()))))
     tol_abs = tolerance * scale
     eye = sp.identity(sr.shape[0], format="csc")
-    factor = analyze(sr + eye, mode="simplicial", ordering_method="amd")
+    factor = analyze((sr + eye).tocsc(), mode="simplicial", ordering_method="amd")
     # The proof: S + tol·I has a Cholesky factor ⇔ λ_min(S) > −tol.
-    if not _factor_ok(factor, sr, tol_abs):
+    if not _factor_ok(factor, (sr + tol_abs * eye).tocsc(), 0.0):
         return OptimalityCertificate(False, _lambda_min_negative(sr), tol_abs, stationarity)
     # The value: shift-and-invert Lanczos next to 0. A shift closer to 0 separates the zero eigenvalues (x and
     # the translation gauge are in S's null space) from the small positive ones of a long chain, so Lanczos
     # converges in a few steps.
     shift = tol_abs
-    if _factor_ok(factor, sr, 1e-3 * tol_abs):
+    if _factor_ok(factor, (sr + 1e-3 * tol_abs * eye).tocsc(), 0.0):
         shift = 1e-3 * tol_abs
     else:
-        _factor_ok(factor, sr, tol_abs)
+        _factor_ok(factor, (sr + tol_abs * eye).tocsc(), 0.0)
     op = LinearOperator(sr.shape, matvec=lambda v: factor(v), dtype=np.float64)
     try:
         vals = eigsh(sr, k=1, sigma=-shift, which="LM", OPinv=op, tol=1e-4, maxiter=1000, return_eigenvectors=False)

@@ -270,3 +270,12 @@ def test_invalid_graphs_and_options_raise() -> None:
     with pytest.raises(PoseGraphError, match="poses must be"):
         g2o_chi2(graph, np.zeros((2, 3)))
     assert issubclass(PoseGraphError, ValueError)
+
+
+def test_graph_copies_its_inputs() -> None:
+    poses = np.zeros((2, 3))
+    graph = PoseGraph(poses, np.array([[0, 1]]), np.array([[1.0, 0.0, 0.0]]), np.eye(3)[None])
+    poses[1, 0] = 5.0  # the caller's array stays writable …
+    assert graph.poses[1, 0] == 0.0  # … and the graph does not change
+    with pytest.raises(ValueError):
+        graph.poses[0, 0] = 1.0
