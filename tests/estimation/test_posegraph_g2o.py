@@ -147,3 +147,12 @@ def test_cli_robust_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert main(["posegraph", str(src)]) == 0
     text = capsys.readouterr().out
     assert "certified" in text and "SE-Sync F" in text
+
+
+def test_cli_help_teaches(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["posegraph", "--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    for phrase in ("SE-Sync", "chi2", "kappa = I33", "certificate", "GLOBAL", "lambda_min", "chordal"):
+        assert phrase in text, phrase
