@@ -13,8 +13,9 @@ STAMP := $(VENV)/.mjnav-installed
 # the pose graph's sparse Cholesky) builds against them.
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libosmesa6 libsuitesparse-dev
 # Only the tests need these: headless Chromium (browser check of the viz snapshot) and docker-compose (validates
-# docker/compose.yaml). Without them those tests skip and say why.
-TEST_PACKAGES := chromium docker-compose
+# docker/compose.yaml), geographiclib-tools (CartConvert: fresh geodetic reference points). Without them those
+# tests skip and say why.
+TEST_PACKAGES := chromium docker-compose geographiclib-tools
 DEMO_WORLD ?= rooms
 DEMO_RTF ?= 2
 PYTEST_ARGS ?=

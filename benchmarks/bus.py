@@ -25,7 +25,7 @@ import numpy as np
 
 from mjnav.bus import Bus, BusConfig, cdr_encoding
 from mjnav.bus.bus import publisher_qos
-from mjnav.msgs import Kind, encode, from_dict, ros
+from mjnav.msgs import encode, from_dict, ros, topic
 
 BEAMS = 360
 
@@ -69,7 +69,7 @@ def publisher(endpoint: str, variant: str, count: int, rate_hz: float) -> None:
             raw = bus.session.declare_publisher(
                 bus.key("scan"),
                 encoding=cdr_encoding("sensor_msgs/msg/LaserScan"),
-                **publisher_qos(Kind.SNAPSHOT),
+                **publisher_qos(topic("scan")),
             )
             payload = bytearray(encode(template))
             put = raw.put

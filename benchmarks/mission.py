@@ -1,15 +1,21 @@
-"""Mission benchmark: the whole stack (sim, mapper, planner, smoother, controller) driving to a goal.
+"""Mission benchmark: the whole stack (sim, mapper, planner, smoother, controller, viz) driving to a goal.
 
-For each requested real-time factor the shipped stack runs as real processes on an embedded router (``mjnav up``),
-the robot drives from the world's start to its goal on an unknown map, and this prints:
+For each world and seed the shipped stack runs as real processes on an embedded router (``mjnav up``, headless), in
+lockstep by default (the mission client is a participant, so each run is repeatable to the last bit), and the
+robot drives from the world's start to its default goal on an unknown map. It prints, per run:
 
-* time-to-goal (sim s) beside the bound 1.25 × optimal length / v_max (the goal), where the optimal length is
-  the shortest collision-free path for the robot's radius on the true map;
-* the real-time factor the stack achieved over the mission (sim s per wall s; goal >= 4);
-* each service's CPU share over the mission (CPU seconds per wall second, from /proc; 2 cores = 200 %).
+* the outcome, collisions and the minimum clearance (smallest lidar range − robot radius);
+* time-to-goal (sim s) beside the bound 1.25 × optimal length / v_max, where the optimal length is the shortest
+  collision-free path for the robot's radius on the true map;
+* the real-time factor the stack achieved while the robot drove (sim s per wall s, start-up excluded);
+* each service's CPU share over the drive (CPU seconds per wall second, from /proc; 2 cores = 200 %).
 
-    python benchmarks/mission.py                 # rooms, rtf 4 and max
-    python benchmarks/mission.py --world warehouse --rtf 4,8
+Goals (issue 10): every world × 5 seeds at ``--rtf max``: reached, 0 collisions, min clearance >= 0.05 m, time
+ratio <= 1; the whole stack at >= 10x real time.
+
+    python benchmarks/mission.py                              # every world with a goal, seeds 0-4, rtf max
+    python benchmarks/mission.py --world warehouse --seeds 0,1 --rtf 4
+    python benchmarks/mission.py --quick                      # rooms, seed 0
 """
 
 from __future__ import annotations
@@ -26,8 +32,9 @@ from pathlib import Path
 
 from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.runtime.mission import MissionClient
+from mjnav.sim import Simulator
 from mjnav.sim.truth import shortest_length_m
-from mjnav.sim.worlds import world_info
+from mjnav.sim.worlds import available_worlds, world_info
 
 REPO = Path(__file__).resolve().parent.parent
 SERVICES = ("sim", "mapper", "planner", "smoother", "controller", "viz")
@@ -45,48 +52,34 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / _TICKS  # utime + stime
 
 
-def run_once(world: str, rtf: str) -> dict[str, object]:
-    """One mission at one real-time factor ("max" = as fast as possible)."""
+def run_once(world: str, rtf: str, seed: int, free_running: bool = False) -> dict[str, object]:
+    """One mission at one real-time factor ("max" = as fast as the services allow)."""
     info = world_info(world)
     assert info.goal is not None, f"world {world} has no default goal"
     port = _free_port()
-    sim_rtf = "0" if rtf == "max" else rtf
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "mjnav",
-            "up",
-            "--port",
-            str(port),
-            "--headless",
-            "--set",
-            f"sim.world={world}",
-            "--set",
-            f"sim.rtf={sim_rtf}",
-        ],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    participants = ["mapper", "planner", "smoother", "controller", "mission"]
+    cmd = [sys.executable, "-m", "mjnav", "up", "--port", str(port), "--headless", "--seed", str(seed)]
+    cmd += ["--set", f"sim.world={world}", "--set", f"sim.rtf={'0' if rtf == 'max' else rtf}"]
+    cmd += ["--free-running"] if free_running else ["--set", f"sim.lockstep_participants={json.dumps(participants)}"]
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        with Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",))) as bus:
-            client = MissionClient(bus)
-            status = bus.subscribe("status", service="*")
+        with Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus:
+            client = MissionClient(bus, name="mission")
+            status = bus.subscribe("status", service="*", immediate=True)  # wall-time reports, not staged
             if not wait_until(lambda: set(SERVICES) <= set(bus.alive_services(0.5)), 180.0):
                 raise RuntimeError("the stack did not come up")
             if not wait_until(lambda: set(SERVICES) <= {s.service for s in status.latest_by_key().values()}, 30.0):
                 raise RuntimeError("no status from every service")
             pids = {s.service: int(s.pid) for s in status.latest_by_key().values()}
             config = json.loads(bus.call("config", service="controller").data)
-            client.truth.wait(30.0)
             cpu0 = {name: _cpu_s(pid) for name, pid in pids.items()}
-            wall0, sim0 = time.monotonic(), client.now()
-            outcome = client.run_goal(info.goal.x, info.goal.y, timeout_s=300.0, wall_timeout_s=600.0)
+            wall0 = time.monotonic()
+            outcome = client.run_goal(info.goal.x, info.goal.y, timeout_s=300.0, wall_timeout_s=900.0)
             wall = time.monotonic() - wall0
-            sim_s = client.now() - sim0
             cpu = {name: (_cpu_s(pid) - cpu0[name]) / wall for name, pid in pids.items()}
             collisions = client.collisions()
+            clearance = client.min_range_m() - Simulator(info.path, lidar=None).robot_radius_m
+            rtf_got = client.achieved_rtf
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(60)
@@ -95,42 +88,76 @@ def run_once(world: str, rtf: str) -> dict[str, object]:
     bound = 1.25 * optimal / v_max
     return {
         "world": world,
+        "seed": seed,
         "rtf_requested": rtf,
+        "lockstep": not free_running,
         "result": outcome.result,
         "time_to_goal_s": outcome.time_s,
         "bound_s": bound,
         "time_ratio": outcome.time_s / bound,
         "driven_m": outcome.path_length_m,
         "optimal_m": optimal,
-        "rtf_achieved": sim_s / wall,
+        "min_clearance_m": clearance,
+        "rtf_achieved": rtf_got,
         "collisions": collisions,
         "cpu_share": cpu,
     }
 
 
+def _verdict(r: dict[str, object]) -> bool:
+    return (
+        r["result"] == "reached"
+        and r["collisions"] == 0
+        and float(r["min_clearance_m"]) >= 0.05  # type: ignore[arg-type]
+        and float(r["time_ratio"]) <= 1.0  # type: ignore[arg-type]
+    )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--world", default="rooms", help="world with a default goal (default rooms)")
-    parser.add_argument("--rtf", default="4,max", help="comma-separated real-time factors (default 4,max)")
-    parser.add_argument("--quick", action="store_true", help="only rtf 4")
+    parser.add_argument("--world", help="one world (default: every bundled world with a default goal)")
+    parser.add_argument("--seeds", default="0,1,2,3,4", help="comma-separated seeds (default 0,1,2,3,4)")
+    parser.add_argument("--rtf", default="max", help="real-time factor: max (default) or a number")
+    parser.add_argument("--free-running", action="store_true", help="sim on wall time instead of lockstep")
+    parser.add_argument("--quick", action="store_true", help="rooms, seed 0 only")
     parser.add_argument("--json", action="store_true", help="print JSON")
     args = parser.parse_args()
-    rtfs = ["4"] if args.quick else [r.strip() for r in args.rtf.split(",") if r.strip()]
-    rows = [run_once(args.world, rtf) for rtf in rtfs]
+    if args.quick:
+        worlds, seeds = ["rooms"], [0]
+    else:
+        worlds = [args.world] if args.world else [w for w in available_worlds() if world_info(w).goal is not None]
+        seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
+    rows = []
+    for world in worlds:
+        for seed in seeds:
+            rows.append(run_once(world, args.rtf, seed, args.free_running))
+            if not args.json:
+                _print_row(rows[-1])
     if args.json:
         print(json.dumps(rows))
         return 0
-    print(f"world {args.world}: start → default goal on an unknown map, whole stack as processes")
-    head = f"{'rtf':>5s} {'result':>8s} {'t goal s':>9s} {'bound s':>8s} {'ratio':>6s} {'rtf got':>8s} {'coll':>5s}"
-    print(head + "  CPU share per service (CPU s / wall s)")
-    for r in rows:
-        cpu = "  ".join(f"{k} {100 * v:.0f}%" for k, v in r["cpu_share"].items())  # type: ignore[attr-defined]
-        print(
-            f"{r['rtf_requested']:>5s} {r['result']:>8s} {r['time_to_goal_s']:9.1f} {r['bound_s']:8.1f} "
-            f"{r['time_ratio']:6.2f} {r['rtf_achieved']:8.2f} {r['collisions']:5d}  {cpu}"
-        )
-    print("goals: time-to-goal <= 1.25 x optimal / v_max (ratio <= 1), stack at >= 4x real time")
+    ok = [r for r in rows if _verdict(r)]
+    rtfs = sorted(float(r["rtf_achieved"]) for r in rows)  # type: ignore[arg-type]
+    print(
+        f"goal: reached, 0 collisions, clearance >= 0.05 m, time ratio <= 1: {len(ok)}/{len(rows)} runs "
+        f"{'met' if len(ok) == len(rows) else 'NOT met'}"
+    )
+    median = rtfs[len(rtfs) // 2]
+    print(
+        f"goal: stack >= 10x real time: median {median:.1f}x (min {rtfs[0]:.1f}x) "
+        f"{'met' if median >= 10 else 'NOT met'}"
+    )
     return 0
+
+
+def _print_row(r: dict[str, object]) -> None:
+    cpu = "  ".join(f"{k} {100 * v:.0f}%" for k, v in r["cpu_share"].items())  # type: ignore[attr-defined]
+    print(
+        f"{r['world']:>9s} seed {r['seed']} rtf {r['rtf_requested']}: {r['result']:>8s} coll {r['collisions']} "
+        f"clear {r['min_clearance_m']:.3f} m  t {r['time_to_goal_s']:.2f}/{r['bound_s']:.1f} s "
+        f"(ratio {r['time_ratio']:.2f})  rtf {r['rtf_achieved']:.1f}x  {'ok' if _verdict(r) else 'FAIL'}  CPU: {cpu}",
+        flush=True,
+    )
 
 
 if __name__ == "__main__":

@@ -236,7 +236,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--no-peers", action="store_true", help="skip pyastar2d and scikit-image")
     parser.add_argument("--json", type=Path, default=None, help="also write the full results here")
+    parser.add_argument(
+        "--quick", action="store_true", help="short run (make bench): one map, 3 queries, best of 2, no pure Python"
+    )
     args = parser.parse_args(argv)
+    if args.quick:
+        args.maps, args.longest, args.repeat, args.python_queries = ["random512-40-5"], 3, 2, 0
     if not (args.refdata / "movingai").is_dir():
         print(f"reference data not found: {args.refdata / 'movingai'}", file=sys.stderr)
         return 2

@@ -2,16 +2,52 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import socket
+import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
-from mjnav.bus import Bus, BusConfig
+from mjnav.bus import Bus, BusConfig, wait_until
 
 REPO = Path(__file__).resolve().parent.parent
+#: Environment marker every process started by this test session inherits (see ``no_process_left_behind``).
+_SESSION_MARK = "MJNAV_TEST_SESSION"
+
+
+def _marked_processes(mark: str) -> list[tuple[int, str]]:
+    """(pid, command line) of the processes other than this one whose environment carries ``mark``."""
+    needle = f"{_SESSION_MARK}={mark}".encode()
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if needle in (entry / "environ").read_bytes().split(b"\0"):
+                cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+                found.append((int(entry.name), cmd))
+        except OSError:  # gone meanwhile, or not ours to read
+            continue
+    return found
+
+
+@pytest.fixture(scope="session", autouse=True)
+def no_process_left_behind() -> Iterator[None]:
+    """Every process a test starts inherits a session marker; at the end none may still run (they are killed and
+    the session fails, naming them). Processes get a few seconds to finish a clean stop they already began."""
+    mark = uuid.uuid4().hex
+    os.environ[_SESSION_MARK] = mark
+    yield
+    wait_until(lambda: not _marked_processes(mark), 5.0, poll_s=0.2)
+    left = _marked_processes(mark)
+    for pid, _ in left:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    assert not left, f"processes left behind by the tests: {left}"
 
 
 def refdata_dir() -> Path | None:

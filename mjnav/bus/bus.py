@@ -27,6 +27,7 @@ from mjnav.msgs.topics import (
     alive_key,
     check_namespace,
     endpoint,
+    lockstep_key,
     topic,
 )
 from mjnav.msgs.validate import validate, validator
@@ -84,29 +85,32 @@ class _RejectLog:
             self._suppressed[key] = self._suppressed.get(key, 0) + 1
 
 
-def publisher_qos(kind: Kind) -> dict[str, Any]:
-    """Zenoh publisher options of a delivery kind.
+def publisher_qos(row: Topic) -> dict[str, Any]:
+    """Zenoh publisher options of a topic: reliable and blocking for every topic, at one priority.
 
-    Events: reliable, blocking, higher priority. Snapshots: reliable but dropped under congestion. Neither is
-    ``express``: batching keeps throughput up when the sim publishes thousands of messages per second.
+    Nothing is dropped in transit — a lockstep step must see every message its peers sent before it, a lost
+    costmap or clock would change or stall the run — and one priority keeps one publisher's messages in the order
+    they were sent whatever their topic (a participant's messages reach the others before its ``lockstep``
+    report). Only the topics that close a lockstep round (clock, lockstep reports) are ``express``; the others are
+    batched, which keeps throughput up when the sim publishes thousands of messages per second. Snapshot and event
+    topics differ only at the subscriber (newest kept, or every message queued).
     """
-    event = kind is Kind.EVENT
     return {
-        "congestion_control": zenoh.CongestionControl.BLOCK if event else zenoh.CongestionControl.DROP,
+        "congestion_control": zenoh.CongestionControl.BLOCK,
         "reliability": zenoh.Reliability.RELIABLE,
-        "priority": zenoh.Priority.DATA_HIGH if event else zenoh.Priority.DATA,
-        "express": False,
+        "priority": zenoh.Priority.DATA,
+        "express": row.express,
     }
 
 
 class Publisher:
-    """Publishes messages of one topic; snapshot topics may drop under congestion, events never do."""
+    """Publishes the messages of one topic (reliably: see :func:`publisher_qos`)."""
 
     def __init__(self, bus: Bus, row: Topic, key: str) -> None:
         self.topic = row
         self.key = key
         self._bus = bus
-        self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos(row.kind))
+        self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos(row))
         self._encode = codec.encoder(row.msgtype)
 
     def put(self, msg: Any) -> None:
@@ -114,7 +118,10 @@ class Publisher:
         self.put_bytes(self._encode(msg))
 
     def put_bytes(self, payload: bytes) -> None:
-        """Publish an already-encoded CDR payload."""
+        """Publish an already-encoded CDR payload (nothing, once the bus is closing: a callback still running
+        while :meth:`Bus.close` undeclares everything must not fail on it)."""
+        if self._bus.closing:
+            return
         self._pub.put(payload)
         self._bus._count_published()
 
@@ -151,6 +158,7 @@ class Subscription:
         row: Topic,
         key: str,
         callback: Callable[[Any], None] | None,
+        immediate: bool = False,
     ) -> None:
         self.topic = row
         self.key = key
@@ -163,12 +171,17 @@ class Subscription:
         self._fresh = False
         self.count = 0
         self._wildcard = "*" in key
+        self._immediate = immediate
         self._encoding = cdr_encoding(row.msgtype)
         self._decode = codec.decoder(row.msgtype)
         self._validate = validator(row.msgtype)
-        self._sub = bus.session.declare_subscriber(key, self._on_sample)
+        # In Zenoh's network thread (not the default thread per subscriber): samples are then handled in the order
+        # they arrived across all subscriptions of the session, which staged delivery relies on.
+        self._sub = bus.session.declare_subscriber(key, zenoh.handlers.Callback(self._on_sample, indirect=False))
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
+        if self._bus.closing:
+            return
         # Hot path (every message of every topic): skip the string work when the key is not a wildcard and the
         # encoding is exactly ours.
         key = str(sample.key_expr) if self._wildcard else self.key
@@ -184,6 +197,12 @@ class Subscription:
         if reason is not None:
             self._bus._reject(key, reason)
             return
+        if self._bus.staged and not self._immediate:
+            self._bus._stage(self, key, msg)
+            return
+        self._deliver(key, msg)
+
+    def _deliver(self, key: str, msg: Any) -> None:
         with self._cond:
             self._latest = msg
             self._by_key[key] = msg
@@ -274,6 +293,11 @@ class Bus:
     def __init__(self, session: zenoh.Session, namespace: str = DEFAULT_NAMESPACE, *, owns_session: bool = False):
         check_namespace(namespace)
         self.session = session
+        #: Staged delivery (set by sim-time services): accepted messages wait until :meth:`commit`.
+        self.staged = False
+        #: Set by :meth:`close`: samples still arriving are ignored and publishing does nothing.
+        self.closing = False
+        self._staging: list[tuple[Subscription, str, Any]] = []
         self.namespace = namespace
         self.stats = BusStats()
         self._owns_session = owns_session
@@ -294,6 +318,7 @@ class Bus:
 
     def close(self) -> None:
         """Undeclare everything this bus declared and close the session if the bus opened it."""
+        self.closing = True
         for entity in reversed(self._declared):
             try:
                 entity.close() if hasattr(entity, "close") else entity.undeclare()
@@ -320,6 +345,23 @@ class Bus:
             self.stats.last_rejection = f"{key}: {reason}"
         self._reject_log(key, reason)
 
+    def _stage(self, sub: Subscription, key: str, msg: Any) -> None:
+        with self._lock:
+            self._staging.append((sub, key, msg))
+
+    def commit(self) -> None:
+        """Deliver every staged message, in arrival order, to its subscription (and callback).
+
+        With :attr:`staged` set, accepted messages are held back until this call. A sim-time service commits when
+        a ``clock`` message arrives: Zenoh delivers one router link's samples in order, so a step at that time sees
+        exactly the messages that arrived before the clock — those its peers published before the sim advanced to
+        it — and none that peers publish while they step at the same time.
+        """
+        with self._lock:
+            staged, self._staging = self._staging, []
+        for sub, key, msg in staged:
+            sub._deliver(key, msg)
+
     # ----------------------------------------------------------------------------------------- pub/sub by name
 
     def key(self, name: str, service: str | None = None) -> str:
@@ -339,6 +381,7 @@ class Bus:
         *,
         callback: Callable[[Any], None] | None = None,
         service: str | None = None,
+        immediate: bool = False,
     ) -> Subscription:
         """Subscribe to topic ``name``.
 
@@ -346,9 +389,10 @@ class Bus:
             name: topic name from the table.
             callback: optional function called (in Zenoh's thread) with each accepted message.
             service: the service of a per-service topic (``"*"`` for all).
+            immediate: deliver at once even when the bus is :attr:`staged` (the clock itself, barrier reports).
         """
         row = topic(name)
-        sub = Subscription(self, row, row.key(self.namespace, service), callback)
+        sub = Subscription(self, row, row.key(self.namespace, service), callback, immediate)
         self._declared.append(sub)
         return sub
 
@@ -411,6 +455,18 @@ class Bus:
         self._declared.append(token)
         return token
 
+    def declare_lockstep(self, participant: str) -> Any:
+        """Declare the lockstep token ``mjnav/lockstep/<ns>/<participant>``: the sim waits for this participant's
+        ``lockstep`` reports while the token is up."""
+        token = self.session.liveliness().declare_token(lockstep_key(self.namespace, participant))
+        self._declared.append(token)
+        return token
+
+    def watch_lockstep(self, callback: Callable[[str, bool], None]) -> Any:
+        """Call ``callback(participant, present)`` whenever a lockstep token of this namespace appears or vanishes
+        (tokens already up are reported first)."""
+        return self._watch_tokens(lockstep_key(self.namespace, ""), callback)
+
     def alive_services(self, timeout_s: float = 1.0) -> list[str]:
         """Names of the services whose liveliness token is up in this namespace."""
         prefix = alive_key(self.namespace, "")
@@ -419,12 +475,13 @@ class Bus:
 
     def watch_alive(self, callback: Callable[[str, bool], None]) -> Any:
         """Call ``callback(service, alive)`` whenever a service token of this namespace appears or vanishes."""
-        prefix = alive_key(self.namespace, "")
+        return self._watch_tokens(alive_key(self.namespace, ""), callback)
 
+    def _watch_tokens(self, prefix: str, callback: Callable[[str, bool], None]) -> Any:
         def on_sample(sample: zenoh.Sample) -> None:
             callback(str(sample.key_expr)[len(prefix) :], sample.kind == zenoh.SampleKind.PUT)
 
-        sub = self.session.liveliness().declare_subscriber(alive_key(self.namespace, "*"), on_sample, history=True)
+        sub = self.session.liveliness().declare_subscriber(prefix + "*", on_sample, history=True)
         self._declared.append(sub)
         return sub
 

@@ -7,10 +7,14 @@ import json
 import math
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
+
+#: The demo's mission client: a lockstep participant, so goals leave at the same sim time in every run.
+MISSION = "mission"
 
 
 def register(sub: Any) -> None:
@@ -23,7 +27,11 @@ def register(sub: Any) -> None:
             "send the goal(s), and end with a summary. The robot starts with an unknown map. Exit code 0 only when "
             "every goal was reached. With --json the last stdout line is the summary as JSON: reached, collisions, "
             "time_s (sim), path_length_m (driven), optimal_length_m (shortest collision-free path for the robot's "
-            "radius on the true map), v_max_mps, min_clearance_m."
+            "radius on the true map), v_max_mps, min_clearance_m, seed, lockstep, final_pose ([x, y, yaw] true pose "
+            "in map at the end), wall_s (start-up to the end) and achieved_rtf (sim s per wall s while the robot "
+            "drove). The stack runs in lockstep by default: sim time advances only when every service has finished "
+            "the step that is due, so the same --seed gives the same run to the last bit on a busy or an idle "
+            "machine."
         ),
         epilog="Example: mjnav demo --world rooms --rtf 4 --out runs/first --record",
     )
@@ -31,7 +39,21 @@ def register(sub: Any) -> None:
     goals = p.add_mutually_exclusive_group()
     goals.add_argument("--goal", metavar="X,Y", help="goal in the map frame, metres (default: the world's goal)")
     goals.add_argument("--goals", metavar="FILE", help='JSON list of goals: [[x, y], …] or [{"x": …, "y": …}, …]')
-    p.add_argument("--rtf", default="4", metavar="FACTOR|max", help="real-time factor of the sim (default 4)")
+    p.add_argument(
+        "--rtf",
+        default="4",
+        metavar="FACTOR|max",
+        help="at most FACTOR x real time, or max: as fast as the services allow (default 4)",
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the sim's noise and every service's randomness (default 0)"
+    )
+    p.add_argument(
+        "--free-running",
+        action="store_true",
+        help="let the sim run on wall time without waiting for the services (like hardware; results then depend "
+        "on the machine's load)",
+    )
     p.add_argument(
         "--record",
         nargs="?",
@@ -115,20 +137,31 @@ def run(args: argparse.Namespace) -> int:
         print(f"mjnav demo: {exc}", file=sys.stderr)
         return 2
 
-    launcher = Launcher(
-        stack,
-        port=args.port,
-        overrides=overrides,
-        out=sys.stderr if args.json else sys.stdout,
-        extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,
-    )
+    wall0 = time.monotonic()
+    try:
+        launcher = Launcher(
+            stack,
+            port=args.port,
+            overrides=overrides,
+            out=sys.stderr if args.json else sys.stdout,
+            extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,
+            lockstep=not args.free_running,
+            extra_participants=[MISSION],
+            seed=args.seed,
+        )
+    except ConfigError as exc:
+        print(f"mjnav demo: {exc}", file=sys.stderr)
+        return 2
     codes: list[int] = []
     thread = threading.Thread(target=lambda: codes.append(launcher.run(install_signals=False)), daemon=True)
     thread.start()
     summary = None
     try:
-        with Bus.open(BusConfig(connect=(launcher.endpoint,)), stack.namespace) as bus:
+        with Bus.open(BusConfig(mode="client", connect=(launcher.endpoint,)), stack.namespace) as bus:
             summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
+            summary.seed = args.seed
+            summary.lockstep = not args.free_running
+            summary.wall_s = time.monotonic() - wall0
     except KeyboardInterrupt:
         print("mjnav demo: interrupted", file=sys.stderr)
     except (RuntimeError, TimeoutError) as exc:
@@ -154,32 +187,26 @@ def _mission(
     from mjnav.runtime.mission import MissionClient, MissionSummary
 
     log = sys.stderr
-    client = MissionClient(bus)
+    client = MissionClient(bus, name=MISSION)
     if not wait_until(lambda: set(services) <= set(bus.alive_services(0.5)), 180.0):
         raise RuntimeError(f"services did not come up within 180 s (alive: {bus.alive_services(0.5)})")
-    if client.truth.wait(60.0) is None:
-        raise RuntimeError("no ground truth from the sim")
     v_max = math.nan
     try:
         config = json.loads(bus.call("config", service="controller", timeout_s=5.0).data)
         v_max = float(config.get("max_speed_mps", math.nan))
     except (NoReply, ValueError, KeyError) as exc:
         print(f"mjnav demo: could not read the controller's max speed: {exc}", file=log)
-    outcomes = []
-    wall_limit = 3 * timeout_s / (rtf if rtf > 0 else 10.0) + 60.0
-    for x, y in goals:
-        print(f"mjnav demo: goal ({x:.2f}, {y:.2f})", file=log)
-        outcome = client.run_goal(x, y, timeout_s=timeout_s, wall_timeout_s=wall_limit)
+    wall_limit = len(goals) * (3 * timeout_s / (rtf if rtf > 0 else 10.0) + 60.0)
+    print(f"mjnav demo: goals {', '.join(f'({x:.2f}, {y:.2f})' for x, y in goals)}", file=log)
+    outcomes = client.run_goals(goals, timeout_s=timeout_s, wall_timeout_s=wall_limit)
+    for o in outcomes:
         print(
-            f"mjnav demo: goal ({x:.2f}, {y:.2f}) {outcome.result} after {outcome.time_s:.1f} s sim "
-            f"{outcome.error_text}",
+            f"mjnav demo: goal ({o.goal[0]:.2f}, {o.goal[1]:.2f}) {o.result} after {o.time_s:.2f} s sim {o.error_text}",
             file=log,
         )
-        outcomes.append(outcome)
-        if outcome.result != "reached":
-            break
     optimal = _optimal_length(info, outcomes)
     radius = _robot_radius(info)
+    pose = client.final_pose
     return MissionSummary(
         reached=len(outcomes) == len(goals) and all(o.result == "reached" for o in outcomes),
         collisions=client.collisions(),
@@ -189,6 +216,8 @@ def _mission(
         v_max_mps=v_max,
         min_clearance_m=client.min_range_m() - radius,
         goals=[o.__dict__ for o in outcomes],
+        final_pose=None if pose is None else [pose.x, pose.y, pose.theta],
+        achieved_rtf=client.achieved_rtf,
     )
 
 

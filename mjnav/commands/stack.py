@@ -70,6 +70,13 @@ def register(sub: Any) -> None:
         metavar="SERVICE.KEY=VALUE",
         help="override a service's config value, e.g. --set sim.world=maze; repeatable",
     )
+    up.add_argument("--seed", type=int, help="seed of the sim's noise and every service's randomness")
+    up.add_argument(
+        "--free-running",
+        action="store_true",
+        help="let the sim run on wall time without waiting for the services (default: lockstep, sim time advances "
+        "only when every service on sim time has finished the step that is due)",
+    )
     up.add_argument("--list", action="store_true", help="list the stack's services and exit")
     up.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
     up.set_defaults(func=run_up)
@@ -130,6 +137,8 @@ def run_up(args: argparse.Namespace) -> int:
             duration_s=args.duration,
             overrides=overrides,
             extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,
+            lockstep=not args.free_running,
+            seed=args.seed,
         )
     except (ConfigError, ValueError) as exc:
         print(f"mjnav up: {exc}", file=sys.stderr)

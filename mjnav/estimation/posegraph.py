@@ -43,6 +43,8 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
 from sksparse.cholmod import CholmodNotPositiveDefiniteError, Factor, analyze
 
+from mjnav.estimation.errors import EstimationError
+
 __all__ = [
     "OptimalityCertificate",
     "PoseGraph",
@@ -69,7 +71,7 @@ Init = Literal["auto", "chordal", "graph"]
 DEFAULT_ROBUST_WIDTH = math.sqrt(7.814727903251178)
 
 
-class PoseGraphError(ValueError):
+class PoseGraphError(EstimationError, ValueError):
     """Invalid pose graph, poses or options (bad shapes, non-finite values, disconnected graph, …)."""
 
 

@@ -99,15 +99,15 @@ class LogOddsModel:
         min_log_odds: lower clamp l_min (default ln(0.1192/0.8808) ≈ −2.0): bounds how long a free cell takes
             to turn occupied again.
         max_log_odds: upper clamp l_max (default ln(0.971/0.029) ≈ 3.51).
-        free_threshold: a cell with l <= this is FREE (default −1.9956, p ≈ 0.120).
-        occupied_threshold: a cell with l >= this is OCCUPIED (default +1.9956, p ≈ 0.880); cells strictly
-            between the thresholds are UNKNOWN.
+        free_threshold: a cell with l below this is FREE (default −1.9956, p ≈ 0.120).
+        occupied_threshold: a cell with l above this is OCCUPIED (default +1.9956, p ≈ 0.880); cells between the
+            thresholds, either one included, are UNKNOWN (the seed: "free below, occupied above").
 
     With the defaults, an unseen cell becomes OCCUPIED after 3 hits and FREE after 5 misses.
 
     Raises:
-        InvalidParameterError: a value is NaN/inf, or the ordering min <= free_threshold < occupied_threshold
-            <= max, min <= prior <= max, miss < prior < hit does not hold.
+        InvalidParameterError: a value is NaN/inf, or the ordering min < free_threshold < occupied_threshold
+            < max, min <= prior <= max, miss < prior < hit does not hold.
     """
 
     hit_log_odds: float = DEFAULT_HIT_LOG_ODDS
@@ -131,10 +131,10 @@ class LogOddsModel:
             raise InvalidParameterError(
                 f"free_threshold ({self.free_threshold}) must be < occupied_threshold ({self.occupied_threshold})"
             )
-        if not (self.min_log_odds <= self.free_threshold and self.occupied_threshold <= self.max_log_odds):
+        if not (self.min_log_odds < self.free_threshold and self.occupied_threshold < self.max_log_odds):
             raise InvalidParameterError(
-                "thresholds must lie within the clamp bounds, or cells could never become free/occupied: "
-                f"need {self.min_log_odds} <= {self.free_threshold} and {self.occupied_threshold} <= "
+                "thresholds must lie strictly within the clamp bounds, or cells could never become free/occupied: "
+                f"need {self.min_log_odds} < {self.free_threshold} and {self.occupied_threshold} < "
                 f"{self.max_log_odds}"
             )
         if not self.miss_log_odds < self.prior_log_odds < self.hit_log_odds:
@@ -423,8 +423,8 @@ class OccupancyGrid:
         prior_log_odds: l_0, also the initial value of every cell.
         min_log_odds: lower clamp bound.
         max_log_odds: upper clamp bound.
-        free_threshold: log-odds at or below which a cell is FREE (default −1.9956).
-        occupied_threshold: log-odds at or above which a cell is OCCUPIED (default +1.9956).
+        free_threshold: log-odds below which a cell is FREE (default −1.9956).
+        occupied_threshold: log-odds above which a cell is OCCUPIED (default +1.9956).
 
     Attributes:
         log_odds: (H, W) float64 log-odds, row 0 = lowest y. Mutable in place; derived views are recomputed on
@@ -663,12 +663,12 @@ class OccupancyGrid:
         return log_odds_to_prob(self._log_odds)
 
     def states(self) -> NDArray[np.int8]:
-        """(H, W) int8 :class:`CellState` values: OCCUPIED (100) where l >= occupied_threshold, FREE (0) where
-        l <= free_threshold, UNKNOWN (−1) otherwise. This is also a valid trinary ROS occupancy array."""
+        """(H, W) int8 :class:`CellState` values: OCCUPIED (100) where l > occupied_threshold, FREE (0) where
+        l < free_threshold, UNKNOWN (−1) otherwise. This is also a valid trinary ROS occupancy array."""
         m = self.model
         out = np.full(self.shape, CellState.UNKNOWN, dtype=np.int8)
-        out[self._log_odds <= m.free_threshold] = CellState.FREE
-        out[self._log_odds >= m.occupied_threshold] = CellState.OCCUPIED
+        out[self._log_odds < m.free_threshold] = CellState.FREE
+        out[self._log_odds > m.occupied_threshold] = CellState.OCCUPIED
         return out
 
     def to_ros(self, *, trinary: bool = False) -> NDArray[np.int8]:

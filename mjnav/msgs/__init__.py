@@ -22,6 +22,7 @@ from mjnav.msgs.topics import (
     Topic,
     alive_key,
     endpoint,
+    lockstep_key,
     resolve_key,
     topic,
 )
@@ -41,6 +42,7 @@ __all__ = [
     "encode",
     "endpoint",
     "from_dict",
+    "lockstep_key",
     "message_definition",
     "msg_class",
     "resolve_key",

@@ -3,10 +3,10 @@
 Keys are ``<namespace>/<topic>`` — the mapping zenoh-bridge-ros2dds uses for ROS 2 topic ``/<namespace>/<topic>`` —
 so a ROS 2 user behind the bridge sees ordinary topics. Nothing outside this module spells a key.
 
-Delivery:
-- ``SNAPSHOT``: latest wins. Publishers may drop under congestion, subscribers keep only the newest message
-  (scan, odom, map, cmd_vel …).
-- ``EVENT``: never dropped. Reliable, blocking publication; subscribers queue every message (goal, cancel …).
+Delivery: every message is published reliably and never dropped in transit (a publisher waits under congestion:
+lockstep runs must see every message); the kinds differ at the subscriber:
+- ``SNAPSHOT``: latest wins; subscribers keep only the newest message (scan, odom, map, cmd_vel …).
+- ``EVENT``: subscribers queue every message until it is handled (goal, cancel …).
 """
 
 from __future__ import annotations
@@ -39,6 +39,8 @@ class Topic:
         rate: nominal rate, as text for the docs ("10 Hz", "on change").
         description: one line for the README.
         per_service: the key carries the service name: ``<namespace>/<name>/<service>``.
+        express: sent at once rather than batched (the clock and lockstep reports: each closes a lockstep round,
+            and sending it flushes what its publisher batched before it).
     """
 
     name: str
@@ -48,6 +50,7 @@ class Topic:
     rate: str
     description: str
     per_service: bool = False
+    express: bool = False
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this topic in ``namespace``; per-service topics need ``service``
@@ -70,6 +73,7 @@ class Endpoint:
     server: str
     description: str
     per_service: bool = False
+    express: bool = False
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this endpoint in ``namespace`` (``service`` for per-service endpoints)."""
@@ -102,8 +106,9 @@ TOPICS: dict[str, Topic] = {
             "rosgraph_msgs/msg/Clock",
             _S,
             "sim",
-            "every physics tick batch (≈100 Hz sim time)",
+            "100 Hz sim time",
             "Simulation time; every service steps on it",
+            express=True,
         ),
         Topic("scan", "sensor_msgs/msg/LaserScan", _S, "sim", "10 Hz", "Planar lidar, frame `laser`"),
         Topic(
@@ -172,6 +177,16 @@ TOPICS: dict[str, Topic] = {
             "Loop rate, overruns, received/rejected message counts",
             per_service=True,
         ),
+        Topic(
+            "lockstep",
+            "mjnav_msgs/msg/LockstepReady",
+            _S,
+            "every sim-time service",
+            "after each step",
+            "Lockstep barrier: the step just done and when the next is due; the sim waits for it",
+            per_service=True,
+            express=True,
+        ),
     )
 }
 
@@ -204,6 +219,16 @@ def alive_key(namespace: str, service: str) -> str:
     """Liveliness token key of ``service`` in ``namespace``; ``service="*"`` matches them all."""
     check_namespace(namespace)
     return f"{ALIVE_PREFIX}/{namespace}/{service}"
+
+
+#: Liveliness key prefix of the lockstep participants (services on sim time, mission clients).
+LOCKSTEP_PREFIX = "mjnav/lockstep"
+
+
+def lockstep_key(namespace: str, participant: str) -> str:
+    """Liveliness token key of lockstep ``participant`` in ``namespace``; ``"*"`` matches them all."""
+    check_namespace(namespace)
+    return f"{LOCKSTEP_PREFIX}/{namespace}/{participant}"
 
 
 def check_namespace(namespace: str) -> None:
@@ -259,7 +284,10 @@ def markdown_table(namespace: str = DEFAULT_NAMESPACE) -> str:
         key = f"{namespace}/{ep.pattern}"
         lines.append(f"| `{key}` | `{ep.request_type}` | `{ep.response_type}` | {ep.server} | {ep.description} |")
     lines.append("")
-    lines.append(f"Liveliness tokens: `{ALIVE_PREFIX}/{namespace}/<service>` while a service runs.")
+    lines.append(
+        f"Liveliness tokens: `{ALIVE_PREFIX}/{namespace}/<service>` while a service runs, "
+        f"`{LOCKSTEP_PREFIX}/{namespace}/<participant>` while a lockstep participant runs."
+    )
     return "\n".join(lines)
 
 

@@ -9,6 +9,8 @@ returns 0; a second signal kills everything at once.
 
 from __future__ import annotations
 
+import ctypes
+import json
 import logging
 import os
 import signal
@@ -16,8 +18,8 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, fields
 from types import FrameType
 from typing import IO
 
@@ -30,6 +32,25 @@ log = logging.getLogger("mjnav.up")
 STOP_GRACE_S = 5.0
 #: First restart delay; doubles with every restart of the same service.
 RESTART_BACKOFF_S = 0.5
+
+
+#: prctl option: the signal a process gets when its parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent_pid: int) -> Callable[[], None]:
+    """A ``preexec_fn`` that makes the child get SIGTERM when the launcher dies, however it dies (``kill -9``
+    included), so no service outlives it (Linux ``PR_SET_PDEATHSIG``; elsewhere a no-op)."""
+
+    def preexec() -> None:
+        if not sys.platform.startswith("linux"):
+            return
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != parent_pid:  # the launcher died before the request took effect
+            os._exit(1)
+
+    return preexec
 
 
 @dataclass
@@ -54,6 +75,10 @@ class Launcher:
         overrides: per-service ``--set`` values, ``{"sim": ["world=maze"]}``.
         extra_env: environment variables added for every service.
         out: where prefixed child output goes (default stdout).
+        lockstep: run the sim in lockstep with the services on sim time (False: free-running).
+        extra_participants: lockstep participants besides the services (e.g. ``mjnav demo``'s mission client);
+            sim time starts once all of them are present.
+        seed: seed every service that has a ``seed`` setting (the sim's noise, the planner's randomness).
     """
 
     def __init__(
@@ -67,13 +92,17 @@ class Launcher:
         overrides: dict[str, list[str]] | None = None,
         extra_env: dict[str, str] | None = None,
         out: IO[str] | None = None,
+        lockstep: bool = True,
+        extra_participants: Sequence[str] = (),
+        seed: int | None = None,
     ) -> None:
         self.stack = stack
         self.specs = stack.select(list(only) if only else None)
         self.namespace = namespace or stack.namespace
         self.port = port
         self.duration_s = duration_s
-        self.overrides = overrides or {}
+        self.overrides = {name: list(items) for name, items in (overrides or {}).items()}
+        self._add_run_settings(lockstep, extra_participants, seed)
         self.extra_env = extra_env or {}
         self.out = out or sys.stdout
         self.children = [_Child(spec) for spec in self.specs]
@@ -81,6 +110,18 @@ class Launcher:
         self._out_lock = threading.Lock()
         self._signals = 0
         self._alive: set[str] = set()
+
+    def _add_run_settings(self, lockstep: bool, extra_participants: Sequence[str], seed: int | None) -> None:
+        """Lockstep and seed settings, put before the caller's overrides so that an explicit ``--set`` wins."""
+        classes = {spec.name: spec.load_class() for spec in self.specs}
+        for name, cls in classes.items():
+            settings = []
+            if seed is not None and "seed" in {f.name for f in fields(cls.config_class)}:
+                settings.append(f"seed={int(seed)}")
+            if name == "sim":
+                participants = [n for n, c in classes.items() if c.uses_sim_time] + list(extra_participants)
+                settings += [f"lockstep={json.dumps(lockstep)}", f"lockstep_participants={json.dumps(participants)}"]
+            self.overrides[name] = settings + self.overrides.get(name, [])
 
     @property
     def endpoint(self) -> str:
@@ -100,8 +141,10 @@ class Launcher:
             str(self.stack.path),
             "--ns",
             self.namespace,
+            # Client mode: every message goes through the router, one link per service, so each service receives
+            # a publisher's messages in the order they were sent (what lockstep relies on).
             "--mode",
-            "peer",
+            "client",
             "--connect",
             self.endpoint,
         ]
@@ -125,6 +168,7 @@ class Launcher:
             bufsize=1,
             env=self._env(),
             start_new_session=True,  # Ctrl-C reaches the launcher only; it stops the services in order
+            preexec_fn=_die_with_parent(os.getpid()),
         )
         child.proc = proc
         pump = threading.Thread(target=self._pump, args=(child.spec.name, proc), daemon=True)

@@ -57,20 +57,58 @@ class _Track:
     statuses: list[Any] = field(default_factory=list)
 
 
-class MissionClient:
-    """Sends goals and measures the run on a :class:`~mjnav.bus.Bus` (any namespace)."""
+@dataclass
+class _Job:
+    """Goals being run: sent, watched and ended inside the client's lockstep steps."""
 
-    def __init__(self, bus: Bus) -> None:
+    pending: list[tuple[float, float]]
+    timeout_s: float
+    outcomes: list[GoalOutcome] = field(default_factory=list)
+    current: GoalOutcome | None = None
+    t0: float = math.nan
+    length0: float = 0.0
+    seen: int = 0
+    done: bool = False
+    final_pose: Pose2D | None = None
+    started: tuple[float, float] | None = None  # (sim, wall) when the first goal left
+    ended: tuple[float, float] | None = None  # (sim, wall) when the last goal ended
+
+
+class MissionClient:
+    """Sends goals and measures the run on a :class:`~mjnav.bus.Bus` (any namespace).
+
+    From its first :meth:`run_goals` on, the client is a lockstep participant called ``name``: it steps every
+    ``period_s`` of sim time, in the clock's callback, and sends goals, cancels and ends them only in those steps,
+    reporting each on ``lockstep`` like a service. With the sim in lockstep and the client among its
+    ``lockstep_participants`` (sim time then starts when the first goals are handed over), a mission is repeatable
+    to the last bit: goals leave at the same sim times, and everything it measures — driven length, clearance,
+    collisions, the final pose — is read from messages committed at the same clock ticks.
+    """
+
+    def __init__(self, bus: Bus, *, name: str = "mission", period_s: float = 0.05) -> None:
         self.bus = bus
+        self.name = name
+        self.period_s = period_s
         self._lock = threading.Condition()
         self._track = _Track()
-        self.clock = bus.subscribe("clock")
+        self._job: _Job | None = None
+        self._now = math.nan
+        self._next_tick = math.nan
+        #: True pose when the last :meth:`run_goals` ended (None before).
+        self.final_pose: Pose2D | None = None
+        #: Sim seconds per wall second from the first goal's start to the last goal's end (NaN before).
+        self.achieved_rtf = math.nan
+        bus.staged = True
         self.sim_status = bus.subscribe("sim_status")
         self.truth = bus.subscribe("ground_truth", callback=self._on_truth)
         bus.subscribe("scan", callback=self._on_scan)
         bus.subscribe("goal_status", callback=self._on_status)
         self.goal_pub = bus.publisher("goal")
         self.cancel_pub = bus.publisher("cancel")
+        self._ready_pub = bus.publisher("lockstep", service=name)
+        self._ready = msg_class("mjnav_msgs/msg/LockstepReady")
+        self.clock = bus.subscribe("clock", callback=self._on_clock, immediate=True)
+        self._participating = False
 
     # ----------------------------------------------------------------------------------------- measurements
 
@@ -93,12 +131,32 @@ class MissionClient:
     def _on_status(self, msg: Any) -> None:
         with self._lock:
             self._track.statuses.append(msg)
+
+    def _on_clock(self, msg: Any) -> None:
+        t = ros.seconds(msg.clock)
+        self.bus.commit()  # what arrived before this clock: measurements and statuses up to t
+        with self._lock:
+            if not t >= self._now:  # the first clock, or the sim restarted
+                self._next_tick = t
+            self._now = t
+            if not self._participating:
+                return
+            if self._next_tick == -math.inf:
+                self._next_tick = t
+            if t < self._next_tick - 1e-9:
+                return
+            self._step(t)
+            while self._next_tick <= t + 1e-9:
+                self._next_tick += self.period_s
             self._lock.notify_all()
+        self._ready_pub.put(
+            self._ready(header=ros.header(t, ""), participant=self.name, ready_until=ros.time_msg(self._next_tick))
+        )
 
     def now(self) -> float:
         """Latest sim time, seconds (NaN before the first clock)."""
-        msg = self.clock.latest()
-        return math.nan if msg is None else ros.seconds(msg.clock)
+        with self._lock:
+            return self._now
 
     def driven_m(self) -> float:
         """Distance driven since the client started, metres (ground truth)."""
@@ -117,50 +175,100 @@ class MissionClient:
 
     def robot_pose(self) -> Pose2D | None:
         """Latest true pose, or None before the first."""
-        msg = self.truth.latest()
-        return None if msg is None else ros.pose2d(msg.pose)
+        with self._lock:
+            return self._track.last
 
     # ----------------------------------------------------------------------------------------------- goals
 
-    def run_goal(self, x: float, y: float, *, timeout_s: float, wall_timeout_s: float = math.inf) -> GoalOutcome:
-        """Send goal (x, y) and wait until it is reached, fails, or ``timeout_s`` of sim time pass (then cancel).
-
-        ``wall_timeout_s`` bounds the wait in wall time too (a stalled sim must not hang the caller).
-        """
+    def _step(self, t: float) -> None:
+        """One lockstep step (under the lock): end the current goal if its status says so, then send the next."""
+        job = self._job
+        if job is None or job.done:
+            return
+        track = self._track
+        current = job.current
+        if current is not None:
+            for msg in track.statuses[job.seen :]:
+                if current.goal_id == 0 and msg.state == _STATUS.STATE_ACCEPTED:
+                    current.goal_id = int(msg.goal_id)
+                if msg.goal_id == current.goal_id and msg.state in _FINAL:
+                    current.result = _FINAL[msg.state]
+                    current.error_code = int(msg.error_code)
+                    current.error_text = msg.error_text
+                    break
+            job.seen = len(track.statuses)
+            if current.result == "timeout" and t - job.t0 >= job.timeout_s:
+                self.cancel_pub.put(msg_class("std_msgs/msg/Empty")())
+            elif current.result == "timeout":
+                return
+            current.time_s = t - job.t0
+            current.path_length_m = track.length_m - job.length0
+            job.outcomes.append(current)
+            job.current = None
+            if current.result != "reached":
+                job.pending.clear()
+        if not job.pending:
+            job.done = True
+            job.final_pose = track.last
+            job.ended = (t, time.monotonic())
+            return
+        if job.started is None:
+            job.started = (t, time.monotonic())
+        x, y = job.pending.pop(0)
         outcome = GoalOutcome(goal=(x, y))
-        pose = self.robot_pose()
-        if pose is not None:
-            outcome.start = (pose.x, pose.y)
-        with self._lock:
-            seen = len(self._track.statuses)
-        length0, t0 = self.driven_m(), self.now()
+        if track.last is not None:
+            outcome.start = (track.last.x, track.last.y)
+        job.current, job.t0, job.length0, job.seen = outcome, t, track.length_m, len(track.statuses)
+        self.goal_pub.put(ros.pose_stamped(t, "map", Pose2D(x, y, 0.0)))
+
+    def run_goals(
+        self, goals: list[tuple[float, float]], *, timeout_s: float, wall_timeout_s: float = math.inf
+    ) -> list[GoalOutcome]:
+        """Run goals (x, y) in order, each until reached, failed, or ``timeout_s`` of sim time (then canceled);
+        stops after the first goal not reached. Returns the outcomes of the goals run.
+
+        Goals are sent in the client's own steps (sim time), so the outcome does not depend on when this is
+        called or how fast the machine is. ``wall_timeout_s`` bounds the wait in wall time (a stalled sim must not
+        hang the caller): the goal in progress then ends as ``timeout``.
+
+        Raises:
+            RuntimeError: nobody subscribes to the goal topic (no planner) within 10 s.
+        """
         if not self.goal_pub.wait_for_subscribers(10.0):
             raise RuntimeError(f"nobody subscribes to {self.bus.key('goal')}: is the planner running?")
-        self.goal_pub.put(ros.pose_stamped(t0 if math.isfinite(t0) else 0.0, "map", Pose2D(x, y, 0.0)))
-        wall_deadline = time.monotonic() + wall_timeout_s
+        job = _Job(pending=list(goals), timeout_s=timeout_s)
+        deadline = time.monotonic() + wall_timeout_s
         with self._lock:
-            while True:
-                for msg in self._track.statuses[seen:]:
-                    if outcome.goal_id == 0 and msg.state == _STATUS.STATE_ACCEPTED:
-                        outcome.goal_id = int(msg.goal_id)
-                    if msg.goal_id == outcome.goal_id and msg.state in _FINAL:
-                        outcome.result = _FINAL[msg.state]
-                        outcome.error_code = int(msg.error_code)
-                        outcome.error_text = msg.error_text
-                        break
-                seen = len(self._track.statuses)
-                if outcome.result != "timeout":
+            self._job = job
+            join = not self._participating
+            self._participating = True
+            self._next_tick = -math.inf  # the first goal leaves at the first clock from here on
+        if join:
+            # From now on the sim waits for this client's steps; a sim that expects it starts time only now.
+            self.bus.declare_lockstep(self.name)
+        with self._lock:
+            while not job.done:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    if job.current is not None:
+                        self.cancel_pub.put(msg_class("std_msgs/msg/Empty")())
+                        job.current.time_s = self._now - job.t0
+                        job.current.path_length_m = self._track.length_m - job.length0
+                        job.outcomes.append(job.current)
+                    job.done = True
+                    job.final_pose = self._track.last
                     break
-                now = self.now()
-                if (math.isfinite(now) and math.isfinite(t0) and now - t0 >= timeout_s) or (
-                    time.monotonic() >= wall_deadline
-                ):
-                    self.cancel_pub.put(msg_class("std_msgs/msg/Empty")())
-                    break
-                self._lock.wait(0.1)
-        outcome.time_s = self.now() - t0
-        outcome.path_length_m = self.driven_m() - length0
-        return outcome
+                self._lock.wait(min(remaining, 0.5))
+            self._job = None
+        self.final_pose = job.final_pose
+        if job.started is not None and job.ended is not None and job.ended[1] > job.started[1]:
+            self.achieved_rtf = (job.ended[0] - job.started[0]) / (job.ended[1] - job.started[1])
+        return job.outcomes
+
+    def run_goal(self, x: float, y: float, *, timeout_s: float, wall_timeout_s: float = math.inf) -> GoalOutcome:
+        """Send goal (x, y) and wait until it is reached, fails, or ``timeout_s`` of sim time pass (then cancel)."""
+        outcomes = self.run_goals([(x, y)], timeout_s=timeout_s, wall_timeout_s=wall_timeout_s)
+        return outcomes[0] if outcomes else GoalOutcome(goal=(x, y))
 
 
 @dataclass
@@ -175,6 +283,11 @@ class MissionSummary:
     v_max_mps: float
     min_clearance_m: float
     goals: list[dict[str, Any]]
+    seed: int | None = None
+    lockstep: bool = True
+    final_pose: list[float] | None = None
+    wall_s: float = math.nan
+    achieved_rtf: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dict: top-level figures rounded to 0.1 mm / 0.1 ms, non-finite floats as None."""

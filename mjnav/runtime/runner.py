@@ -68,16 +68,24 @@ class ClockJumpedBack(Exception):
 
 
 class _SimClock:
-    """Sim time from the ``clock`` topic; waits are woken by every clock message."""
+    """Sim time from the ``clock`` topic; waits are woken by every clock message.
+
+    The bus is switched to staged delivery: every other message becomes visible to the service when the next clock
+    message arrives (:meth:`~mjnav.bus.Bus.commit`), so a step at sim time t sees what was published before the
+    sim reached t and nothing that peers publish while they step at t.
+    """
 
     def __init__(self, bus: Bus) -> None:
         self._cond = threading.Condition()
         self._now = math.nan
         self.jumps_back = 0
-        self._sub = bus.subscribe("clock", callback=self._on_clock)
+        self._bus = bus
+        bus.staged = True
+        self._sub = bus.subscribe("clock", callback=self._on_clock, immediate=True)
 
     def _on_clock(self, msg: Any) -> None:
         t = ros.seconds(msg.clock)
+        self._bus.commit()
         with self._cond:
             if t < self._now:
                 self.jumps_back += 1
@@ -212,6 +220,7 @@ class ServiceRunner:
         self._state = "inactive"
         service.activate()
         self._state = "active"
+        lockstep = _LockstepReport(bus, self.name) if self.use_sim_time else None
         bus.declare_alive(self.name)
         self.log.info(
             "active: %.1f Hz on %s time, namespace %s",
@@ -261,6 +270,8 @@ class ServiceRunner:
                     next_tick = now
                 self._step(service, now)
                 next_tick += period
+                if lockstep is not None:
+                    lockstep.ready(now, next_tick)
         finally:
             self._state = "finalized"
             try:
@@ -285,6 +296,22 @@ class ServiceRunner:
         s.period_steps += 1
         s.step_time_sum_s += dt
         s.step_time_max_s = max(s.step_time_max_s, dt)
+
+
+class _LockstepReport:
+    """A sim-time service's part in the lockstep barrier: its token, and a report after every step."""
+
+    def __init__(self, bus: Bus, participant: str) -> None:
+        self._pub = bus.publisher("lockstep", service=participant)
+        self._msg = msg_class("mjnav_msgs/msg/LockstepReady")
+        self._participant = participant
+        bus.declare_lockstep(participant)
+
+    def ready(self, done: float, ready_until: float) -> None:
+        """Report the step at sim time ``done`` finished; the next one is due at ``ready_until``."""
+        self._pub.put(
+            self._msg(header=ros.header(done, ""), participant=self._participant, ready_until=ros.time_msg(ready_until))
+        )
 
 
 class _StopAfter:

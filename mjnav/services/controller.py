@@ -1,24 +1,41 @@
 """The controller service: pure pursuit on ``path`` → ``cmd_vel`` at ``rate_hz`` of sim time.
 
 Speed is regulated by curvature and by the nearest obstacle the lidar sees in front (``scan``); the robot slows on
-approach and stops at the goal, reporting ``reached`` on ``goal_status``. It stops (and keeps publishing zero) when
-there is no path, the goal failed or was canceled, the pose is stale, or the robot is further than
-``lost_distance_m`` from the path (the planner's next replan gives a new one).
+approach and stops at the goal, reporting ``reached`` on ``goal_status``. Every command then passes a last-line
+collision check against the robot's own scan (:func:`mjnav.control.collision.safe_command`): the commanded arc is
+rolled forward against the scan's points — moving ones at the velocities two consecutive scans give — and a command
+that would collide is replaced by a slower, stopped or (to clear a crossing obstacle) faster one on the same
+curvature. It stops (and keeps publishing zero) when there is no path, the goal failed or was canceled, the pose is
+stale, or the robot is further than ``lost_distance_m`` from the path (the planner's next replan gives a new one).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+from scipy.ndimage import maximum_filter
 
 from mjnav.control import PathError, PurePursuit, PurePursuitParams, nearest_obstacle_ahead
+from mjnav.control.collision import (
+    CollisionCheckParams,
+    facing_returns,
+    free_space_violations,
+    point_velocities,
+    safe_command,
+    scan_points,
+)
+from mjnav.geometry import Pose2D, PoseHistory
+from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
+#: Map value (occupancy probability, %) from which a cell counts as a wall for the collision check.
+OCCUPIED = 65
 
 
 @dataclass(frozen=True)
@@ -38,6 +55,10 @@ class ControllerConfig:
         pose_timeout_s: stop when the newest pose is older than this (sim seconds).
         path_timeout_s: stop when no path arrived for this long (sim seconds; the planner re-sends every second).
         lost_distance_m: stop when the robot is further than this from the path.
+        collision_margin_m: clearance the collision check keeps beyond ``robot_radius_m``.
+        collision_static_horizon_s: how far ahead (seconds of the commanded arc) static scan points are checked.
+        collision_moving_horizon_s: how far ahead moving scan points are checked.
+        moving_speed_mps: scan points moving faster than this between two scans count as moving.
     """
 
     rate_hz: float = 20.0
@@ -54,6 +75,10 @@ class ControllerConfig:
     pose_timeout_s: float = 0.5
     path_timeout_s: float = 3.0
     lost_distance_m: float = 1.0
+    collision_margin_m: float = 0.02
+    collision_static_horizon_s: float = 0.3
+    collision_moving_horizon_s: float = 4.0
+    moving_speed_mps: float = 0.25
 
     def __post_init__(self) -> None:
         for name in (
@@ -79,6 +104,31 @@ class ControllerConfig:
             goal_tolerance_m=self.goal_tolerance_m,
         )
 
+    def collision_params(self) -> CollisionCheckParams:
+        """The collision check these settings stand for."""
+        return CollisionCheckParams(
+            robot_radius_m=self.robot_radius_m,
+            margin_m=self.collision_margin_m,
+            static_horizon_s=self.collision_static_horizon_s,
+            moving_horizon_s=self.collision_moving_horizon_s,
+            moving_speed_mps=self.moving_speed_mps,
+            max_speed_mps=self.max_speed_mps,
+        )
+
+
+@dataclass(frozen=True)
+class _ScanObstacles:
+    """A scan as the collision check uses it: stamp, sensor pose (map), beams, and its valid returns in the map
+    frame with their velocities."""
+
+    stamp: float
+    pose: tuple[float, float, float]
+    angle_min: float
+    angle_increment: float
+    ranges: Any
+    points: Any
+    velocities: Any
+
 
 class ControllerService(Service[ControllerConfig]):
     """Follows the smoothed path with pure pursuit."""
@@ -88,9 +138,11 @@ class ControllerService(Service[ControllerConfig]):
 
     def configure(self) -> None:
         self.pursuit = PurePursuit(self.config.pursuit_params())
+        self.collision = self.config.collision_params()
         self.path_sub = self.bus.subscribe("path")
-        self.pose_sub = self.bus.subscribe(self.config.pose_source)
+        self.pose_sub = self.bus.subscribe(self.config.pose_source, callback=self._on_pose)
         self.scan_sub = self.bus.subscribe("scan")
+        self.map_sub = self.bus.subscribe("map")
         self.status_sub = self.bus.subscribe("goal_status")
         self.cmd_pub = self.bus.publisher("cmd_vel")
         self.status_pub = self.bus.publisher("goal_status")
@@ -99,6 +151,9 @@ class ControllerService(Service[ControllerConfig]):
         self.stopped_reason = ""
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
+        # Pose callbacks only append here; step() moves them into the history (scan points need the pose of their
+        # stamp).
+        self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
 
     def activate(self) -> None:
         # Also called again when the sim clock restarts: the goal is re-adopted from the planner's heartbeat.
@@ -110,6 +165,75 @@ class ControllerService(Service[ControllerConfig]):
         self.path_points_msg: Any = None
         self.speed = 0.0
         self.pursuit.reset()
+        self.poses = PoseHistory(horizon_s=2.0)
+        self.pending.clear()
+        self.obstacles: _ScanObstacles | None = None  # the newest scan, fused
+        self.walls: tuple[GridFrame, Any] | None = None  # the map's occupied cells, grown by one cell
+
+    def _on_pose(self, msg: Any) -> None:
+        pose = msg.pose.pose if self.config.pose_source == "odom" else msg.pose
+        self.pending.append((ros.seconds(msg.header.stamp), ros.pose2d(pose)))
+
+    def _update_obstacles(self) -> None:
+        """Fuse a new scan: its points in the map frame (at the pose of its stamp) and their velocities."""
+        while self.pending:
+            self.poses.add(*self.pending.popleft())
+        scan = self.scan_sub.take()
+        if scan is None:
+            return
+        stamp = ros.seconds(scan.header.stamp)
+        pose = self.poses.at(stamp)
+        if pose is None:
+            return
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+        local = scan_points(angles, ranges, scan.range_min, scan.range_max)
+        points = pose.transform_points(local)
+        velocities = np.zeros_like(points)
+        prev = self.obstacles
+        if prev is not None and 0 < stamp - prev.stamp <= 0.5:
+            can_move = free_space_violations(points, prev.pose, prev.angle_min, prev.angle_increment, prev.ranges)
+            can_move &= facing_returns(local) & ~self._on_walls(points)
+            velocities = point_velocities(
+                points, prev.points, stamp - prev.stamp, self.collision.moving_speed_mps, can_move=can_move
+            )
+        self.obstacles = _ScanObstacles(
+            stamp, (pose.x, pose.y, pose.theta), float(scan.angle_min), float(scan.angle_increment), ranges, points,
+            velocities,
+        )  # fmt: skip
+
+    def _on_walls(self, points: Any) -> Any:
+        """(M,) True for points on (or next to) a cell the map has as occupied: static, whatever two scans say."""
+        msg = self.map_sub.take()
+        if msg is not None:
+            cells, res, origin = ros.grid_cells(msg)
+            frame = GridFrame(res, (origin.x, origin.y), cells.shape, origin.theta)
+            self.walls = (frame, maximum_filter(cells >= OCCUPIED, size=3))
+        if self.walls is None:
+            return np.zeros(len(points), dtype=bool)
+        frame, walls = self.walls
+        idx = frame.world_to_cells(points)
+        inside = (idx[:, 0] >= 0) & (idx[:, 0] < walls.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < walls.shape[1])
+        out = np.zeros(len(points), dtype=bool)
+        out[inside] = walls[idx[inside, 0], idx[inside, 1]]
+        return out
+
+    def _checked(self, pose: Pose2D, v: float, w: float) -> tuple[float, float]:
+        """(v, ω) after the collision check against the newest scan (unchanged without one)."""
+        if self.obstacles is None:
+            return v, w
+        points, velocities = self.obstacles.points, self.obstacles.velocities
+        local = pose.inverse().transform_points(points)
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        local_vel = velocities @ np.array([[c, -s], [s, c]])  # rotate map-frame velocities into the robot frame
+        safe_v, safe_w, ttc = safe_command(v, w, local, local_vel, self.collision)
+        if (safe_v, safe_w) != (v, w):
+            moving = np.any(velocities != 0.0, axis=1)
+            self.log.debug(
+                "collision check: (%.2f, %.2f) -> (%.2f, %.2f), ttc %.2f s, %d moving point(s) %s",
+                v, w, safe_v, safe_w, ttc, int(moving.sum()), np.round(points[moving][:3], 2).tolist(),
+            )  # fmt: skip
+        return safe_v, safe_w
 
     def _stop(self, reason: str) -> None:
         self.cmd_pub.put(ros.twist(0.0, 0.0))
@@ -146,6 +270,7 @@ class ControllerService(Service[ControllerConfig]):
         return self.path_points
 
     def step(self, now: float) -> None:
+        self._update_obstacles()
         self._track_goal()
         path = self._current_path(now)
         if self.goal is None:
@@ -176,6 +301,7 @@ class ControllerService(Service[ControllerConfig]):
         if abs(status.cross_track_m) > self.config.lost_distance_m:
             self._stop(f"{abs(status.cross_track_m):.2f} m off the path: waiting for a new plan")
             return
+        v, w = self._checked(pose, v, w)
         self.stopped_reason = ""
         self.speed = v
         self.cmd_pub.put(ros.twist(v, w))

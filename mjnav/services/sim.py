@@ -6,9 +6,12 @@ in worlds with moving bodies, ``obstacles`` (their true poses), all stamped in s
 from the newest ``cmd_vel``. The simulator's own watchdog zeroes the wheels when that command is older than
 ``watchdog_timeout_s`` of sim time.
 
-Time: the service steps on wall time (it *is* the clock). Each step advances the simulation to
-``rtf × wall time since activation`` (``rtf = 0``: as fast as possible, one wall period of work per step), so
-every other service, stepping on the ``clock`` topic, runs at the same factor.
+Time: the service steps on wall time (it *is* the clock). In **lockstep** (the default) sim time advances one clock
+tick at a time, and only when every participant — each service on sim time, and mission clients — has finished
+the step that is due (:class:`~mjnav.runtime.lockstep.LockstepBarrier`); time starts once the participants named in
+``lockstep_participants`` are present. ``rtf`` caps the pace (at most rtf × wall time; ``0`` = as fast as the
+participants allow), so a run gives the same result on a busy machine as on an idle one. **Free-running**
+(``lockstep = false``) advances to ``rtf × wall time since activation`` whatever the others do, like hardware.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
+from mjnav.runtime.lockstep import LockstepBarrier
 
 if TYPE_CHECKING:
     from mjnav.sim import SimRunner
@@ -50,6 +54,10 @@ class SimConfig:
         record_path: write an MP4 of the run here ("" = no recording).
         record_fps: video frame rate (frames per sim second).
         record_camera: ``top`` or ``follow``.
+        lockstep: advance only when every participant finished its due step (False: free-running on wall time).
+        lockstep_participants: participants that must be present before sim time starts (``mjnav up`` fills in the
+            stack's sim-time services, ``mjnav demo`` adds its mission client).
+        lockstep_timeout_s: wall seconds a participant may hold sim time before it is named and left out.
     """
 
     world: str = "rooms"
@@ -69,6 +77,9 @@ class SimConfig:
     record_path: str = ""
     record_fps: float = 30.0
     record_camera: str = "top"
+    lockstep: bool = True
+    lockstep_participants: tuple[str, ...] = ()
+    lockstep_timeout_s: float = 10.0
 
     def __post_init__(self) -> None:
         if not self.rtf >= 0.0:
@@ -80,6 +91,7 @@ class SimConfig:
             "obstacles_rate_hz",
             "watchdog_timeout_s",
             "record_fps",
+            "lockstep_timeout_s",
         ):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -125,7 +137,7 @@ class SimBridge:
         self._imu = _Every(config.imu_rate_hz)
         self._status = _Every(SIM_STATUS_RATE_HZ)
         self._sim_status = msg_class("mjnav_msgs/msg/SimStatus")
-        self._wall0 = time.monotonic()
+        self.wall0 = time.monotonic()
         self._scan_time_s = 1.0 / config.lidar_rate_hz
         self.commands_applied = 0
 
@@ -140,15 +152,21 @@ class SimBridge:
         """Make :meth:`publish_due` a hook of ``runner`` (every :attr:`tick_s`)."""
         runner.add_hook(lambda sim: self.publish_due(sim.time_s), self.tick_s)
 
+    @property
+    def clock_period_s(self) -> float:
+        """Sim seconds between two ``clock`` messages."""
+        return self._clock.period
+
     def publish_due(self, t: float) -> None:
-        """Apply a new ``cmd_vel`` and publish every message due at sim time ``t`` (call every :attr:`tick_s`)."""
+        """Apply a new ``cmd_vel`` and publish every message due at sim time ``t`` (call every :attr:`tick_s`),
+        ``clock`` last."""
         sim = self.sim
-        if self._clock.due(t):
+        clock_due = self._clock.due(t)
+        if clock_due:
             cmd = self._cmd.take()
             if cmd is not None:
                 sim.set_command(cmd.linear.x, cmd.angular.z)
                 self.commands_applied += 1
-            self._pub["clock"].put(ros.clock(t))
         if self._odom.due(t):
             est = sim.odometry()
             stamp = est.stamp_s
@@ -174,7 +192,7 @@ class SimBridge:
                 )
             )
         if self._status.due(t):
-            wall = time.monotonic() - self._wall0
+            wall = time.monotonic() - self.wall0
             self._pub["sim_status"].put(
                 self._sim_status(
                     header=ros.header(t, "map"),
@@ -200,6 +218,9 @@ class SimBridge:
                     t, "imu", reading.orientation_xyzw, reading.angular_velocity_radps, reading.linear_acceleration_mps2
                 )
             )
+        # The clock goes last: a service that sees clock t has received every message stamped up to t.
+        if clock_due:
+            self._pub["clock"].put(ros.clock(t))
 
 
 class SimService(Service[SimConfig]):
@@ -224,6 +245,11 @@ class SimService(Service[SimConfig]):
         self.bridge = SimBridge(self.sim, self.bus, cfg)
         self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
         self.bridge.attach(self.runner)
+        self.barrier = (
+            LockstepBarrier(self.bus, cfg.lockstep_participants, cfg.lockstep_timeout_s, self.log)
+            if cfg.lockstep
+            else None
+        )
         self.recorder: Any = None
         if cfg.record_path:
             self.recorder = Recorder(
@@ -232,26 +258,28 @@ class SimService(Service[SimConfig]):
             self.recorder.add_to(self.runner)
         start: Pose2D = self.sim.start_pose
         self.log.info(
-            "world %s, start (%.2f, %.2f, %.2f), rtf %s",
+            "world %s, start (%.2f, %.2f, %.2f), rtf %s, %s",
             cfg.world,
             start.x,
             start.y,
             start.theta,
             cfg.rtf or "max",
+            f"lockstep with {', '.join(cfg.lockstep_participants) or 'whoever joins'}"
+            if cfg.lockstep
+            else "free-running",
         )
 
     def activate(self) -> None:
         self._wall0 = time.monotonic()
         self._last_report = self._wall0
+        self._pace: tuple[float, float] | None = None  # (wall, sim) reference of lockstep pacing
+        self._time_started = False
 
     def step(self, now: float) -> None:
-        cfg = self.config
-        if cfg.rtf > 0:
-            target = cfg.rtf * (time.monotonic() - self._wall0)
-            deadline = time.perf_counter() + 2.0 / cfg.rate_hz  # never block the loop for long
-            self.runner.advance(target, deadline)
+        if self.barrier is not None:
+            self._step_lockstep()
         else:
-            self.runner.advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
+            self._step_free()
         wall = time.monotonic()
         if wall - self._last_report >= 10.0:
             self._last_report = wall
@@ -261,6 +289,46 @@ class SimService(Service[SimConfig]):
                 self.sim.time_s / max(wall - self._wall0, 1e-9),
                 self.sim.collisions,
             )
+
+    def _step_lockstep(self) -> None:
+        """Advance clock tick by clock tick while every participant is ready, within one loop period of wall time
+        and at most ``rtf`` × wall time."""
+        barrier = self.barrier
+        assert barrier is not None
+        tick = self.bridge.clock_period_s
+        if not self._time_started:
+            if not barrier.started():
+                return
+            self.log.info("lockstep: sim time starts with %s", ", ".join(barrier.participants()) or "no participant")
+            self._time_started = True
+            self._wall0 = self.bridge.wall0 = time.monotonic()  # the real-time factor counts from here
+            barrier.published(0.0, tick)  # before the clock goes out: reports may come back at once
+            self.runner.advance(0.0)  # publishes everything due at t = 0, the clock last
+        rtf = self.config.rtf
+        deadline = time.monotonic() + 1.0 / self.config.rate_hz
+        while True:
+            t = self.sim.time_s
+            if rtf > 0:
+                wall = time.monotonic()
+                if self._pace is None or (t - self._pace[1]) < rtf * (wall - self._pace[0]) - rtf * 0.1:
+                    self._pace = (wall - tick / rtf, t)  # (re)start pacing: never sprint to catch up after a stall
+                if t + tick > self._pace[1] + rtf * (wall - self._pace[0]):
+                    return
+            if not barrier.wait(t, max(0.0, deadline - time.monotonic())):
+                return
+            barrier.published(t + tick, tick)
+            self.runner.advance(t + tick)
+            if time.monotonic() >= deadline:
+                return
+
+    def _step_free(self) -> None:
+        cfg = self.config
+        if cfg.rtf > 0:
+            target = cfg.rtf * (time.monotonic() - self._wall0)
+            deadline = time.perf_counter() + 2.0 / cfg.rate_hz  # never block the loop for long
+            self.runner.advance(target, deadline)
+        else:
+            self.runner.advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
 
     def deactivate(self) -> None:
         self.sim.set_command(0.0, 0.0)

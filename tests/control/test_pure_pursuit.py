@@ -149,3 +149,15 @@ def test_repeated_points_are_harmless() -> None:
     assert pp.closest_index == k
     with pytest.raises(PathError, match="distinct"):
         PurePursuit().compute((0, 0, 0), 0.5, [[1.0, 1.0], [1.0, 1.0]])
+
+
+def test_goal_inside_the_lookahead_circle_steers_with_the_actual_distance() -> None:
+    # The goal (0.3, 0.2) is 0.36 m away, inside L = 0.5: it is the lookahead point, and κ = 2y'/d² uses its
+    # actual distance d (2·0.2/0.13 ≈ 3.08), not the nominal L (2·0.2/0.25 = 1.6), or the robot would swing wide.
+    pp = PurePursuit(PurePursuitParams(min_lookahead_m=0.5, max_lookahead_m=1.0, rotate_threshold_rad=1.0))
+    path = np.array([[-1.0, 0.0], [0.0, 0.0], [0.3, 0.2]])
+    pp.compute((0.0, 0.0, 0.0), 0.0, path)
+    status = pp.status
+    assert status.lookahead_point == pytest.approx((0.3, 0.2))
+    assert status.lookahead_m == pytest.approx(math.hypot(0.3, 0.2))
+    assert status.curvature_invm == pytest.approx(2 * 0.2 / (0.3**2 + 0.2**2))

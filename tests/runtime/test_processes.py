@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 from mcap_ros2._dynamic import generate_dynamic
@@ -106,6 +107,32 @@ def test_launcher_restarts_a_killed_service_and_stops_cleanly(peer: Peer) -> Non
     reader.join(5.0)
     text = "".join(lines)
     assert "[kinematic]" in text and "restarting" in text and "stopped kinematic" in text
+
+
+def _running(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has exited (its parent has not reaped it)
+
+
+def test_services_do_not_outlive_a_killed_launcher() -> None:
+    port = free_port()
+    launcher = _mjnav("up", "--stack", str(STACK), "--port", str(port), "--headless")
+    try:
+        from mjnav.bus import BusConfig
+
+        with Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",))) as me:
+            first = me.subscribe("status", service="kinematic").wait(30.0)
+            assert first is not None, "service never reported status"
+        launcher.kill()  # SIGKILL: no chance to stop its children
+        launcher.wait(10.0)
+        assert wait_until(lambda: not _running(first.pid), 2.0), "the service outlived its launcher"
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+        launcher.communicate(timeout=10)
 
 
 def test_launcher_gives_up_on_a_service_that_keeps_failing() -> None:

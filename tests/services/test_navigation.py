@@ -208,7 +208,7 @@ SUBSCRIBED = {
     "mapper": ["clock", "scan", "ground_truth"],
     "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "ground_truth"],
     "smoother": ["clock", "plan", "costmap"],
-    "controller": ["clock", "path", "ground_truth", "scan", "goal_status"],
+    "controller": ["clock", "path", "ground_truth", "scan", "goal_status", "map"],
     "viz": ["ground_truth", "scan", "map", "plan", "path", "costmap", "goal", "goal_status", "sim_status"],
 }
 FUZZ_PER_KEY = 1000

@@ -16,7 +16,6 @@ def test_sim_json_summary_is_the_last_line(capsys: pytest.CaptureFixture[str]) -
     lines = capsys.readouterr().out.strip().splitlines()
     summary = json.loads(lines[-1])
     assert summary["sim_time_s"] == pytest.approx(1.5)
-    assert summary["wall_s"] > 0.0
     assert summary["steps"] == 750 and summary["world"] == "rooms"
 
 

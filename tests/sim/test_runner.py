@@ -25,7 +25,6 @@ def test_hooks_run_on_schedule_and_the_end_time_is_exclusive() -> None:
     assert frames[0] == 0.0
     assert all(abs(t - k / 30.0) <= 0.001 + 1e-12 for k, t in enumerate(frames))  # rounded to 2 ms steps
     assert fast == list(range(1500))
-    assert stats.wall_s > 0.0 and stats.real_time_factor > 0.0
 
 
 def test_advance_in_slices_calls_each_hook_once_per_due_time_including_the_time_reached() -> None:

@@ -1,0 +1,127 @@
+"""The last-line collision check: time to collision on the commanded arc, point velocities, the safe command."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from mjnav.control.collision import (
+    CollisionCheckParams,
+    facing_returns,
+    free_space_violations,
+    point_velocities,
+    safe_command,
+    scan_points,
+    time_to_collision,
+)
+
+P = CollisionCheckParams(
+    robot_radius_m=0.2,
+    margin_m=0.0,
+    static_horizon_s=0.6,
+    moving_horizon_s=4.0,
+    step_s=0.05,
+    uncertainty_growth_mps=0.0,
+)
+
+
+def _wall(x: float) -> np.ndarray:
+    """A wall across the robot's way at x, from y = -1 to 1 (5 cm spacing)."""
+    y = np.linspace(-1.0, 1.0, 41)
+    return np.column_stack((np.full_like(y, x), y))
+
+
+def test_time_to_collision_hand_worked() -> None:
+    # A point 2.03 m ahead closing at 0.5 m/s while the robot drives at 0.5 m/s: contact (0.2 m) after 1.83 s,
+    # first seen on the 0.05 s grid at 1.85 s.
+    ttc = time_to_collision(0.5, 0.0, [[2.03, 0.0]], [[-0.5, 0.0]], P)
+    assert ttc == pytest.approx(1.85)
+    # With the clearance growing 0.1 m per second of prediction: 2.03 − t < 0.2 + 0.1 t from t = 1.664 s (1.7).
+    grown = dataclasses.replace(P, uncertainty_growth_mps=0.1)
+    assert time_to_collision(0.5, 0.0, [[2.03, 0.0]], [[-0.5, 0.0]], grown) == pytest.approx(1.7)
+    # The same point static is 1.83 m of driving away: beyond the 0.6 s static horizon.
+    assert math.isinf(time_to_collision(0.5, 0.0, [[2.03, 0.0]], [[0.0, 0.0]], P))
+    # A static point 0.42 m ahead is reached after 0.44 s (0.45 on the grid); on a sharp left arc the robot turns
+    # away from it.
+    assert time_to_collision(0.5, 0.0, [[0.42, 0.0]], [[0.0, 0.0]], P) == pytest.approx(0.45)
+    assert math.isinf(time_to_collision(0.5, 2.5, [[0.45, -0.3]], [[0.0, 0.0]], P))
+    # Already touching: 0.
+    assert time_to_collision(0.0, 0.0, [[0.1, 0.0]], [[0.0, 0.0]], P) == 0.0
+
+
+def test_point_velocities_from_two_scans() -> None:
+    prev = _wall(2.0)
+    rng = np.random.default_rng(0)
+    moved = prev + np.array([-0.06, 0.0]) + rng.normal(0.0, 0.003, prev.shape)
+    vel = point_velocities(moved, prev, 0.1, 0.25)
+    assert np.allclose(vel[:, 0], -0.6, atol=0.1) and np.allclose(vel[:, 1], 0.0, atol=0.1)
+    # Noise alone (and motion along the wall: the aperture problem) reads as static.
+    still = prev + rng.normal(0.0, 0.003, prev.shape) + np.array([0.0, 0.01])
+    assert not point_velocities(still, prev, 0.1, 0.25).any()
+    assert not point_velocities(moved, np.zeros((0, 2)), 0.1, 0.25).any()
+
+
+def test_safe_command_brakes_for_a_wall_and_lets_a_free_command_through() -> None:
+    assert safe_command(0.5, 0.1, _wall(3.0), np.zeros((41, 2)), P) == (0.5, 0.1, math.inf)
+    # 0.25 m from the robot's edge: the fastest speed that does not reach the wall within the 0.6 s horizon.
+    v, w, ttc = safe_command(0.5, 0.0, _wall(0.45), np.zeros((41, 2)), P)
+    assert (v, w) == (0.375, 0.0) and math.isinf(ttc)
+    # 2 cm from it: stop.
+    v, w, ttc = safe_command(0.5, 0.3, _wall(0.22), np.zeros((41, 2)), P)
+    assert (v, w) == (0.0, 0.0) and math.isinf(ttc)
+
+
+def test_safe_command_waits_for_a_crossing_obstacle_or_clears_its_way() -> None:
+    # A cart's face 1 m wide (x from 0.5 to 1.5) at y = 1.5, coming down at 0.8 m/s across the robot's way.
+    face = np.column_stack((np.linspace(0.5, 1.5, 21), np.full(21, 1.5)))
+    down = np.tile([0.0, -0.8], (21, 1))
+    assert math.isfinite(time_to_collision(0.5, 0.0, face, down, P))
+    v, _, ttc = safe_command(0.5, 0.0, face, down, P)
+    assert 0.0 <= v < 0.5 and math.isinf(ttc)  # slow down (or wait): the cart passes in front of the robot
+    # The robot already stands in the cart's lane: stopping would be hit; backing out (or clearing) is not.
+    lane = np.column_stack((np.linspace(-0.5, 0.5, 21), np.full(21, 1.5)))
+    v, _, ttc = safe_command(0.2, 0.0, lane, down, P)
+    assert v != 0.0 and math.isinf(ttc)
+    assert math.isfinite(time_to_collision(0.0, 0.0, lane, down, P))
+
+
+def test_scan_points_keep_valid_returns_only() -> None:
+    pts = scan_points([0.0, math.pi / 2, 0.1, 0.2], [1.0, 2.0, math.inf, 0.05], 0.12, 12.0)
+    np.testing.assert_allclose(pts, [[1.0, 0.0], [0.0, 2.0]], atol=1e-12)
+
+
+def test_params_are_checked() -> None:
+    with pytest.raises(ValueError):
+        CollisionCheckParams(robot_radius_m=0.0)
+    with pytest.raises(ValueError):
+        CollisionCheckParams(static_horizon_s=2.0, moving_horizon_s=1.0)
+
+
+def test_free_space_violations_tell_an_approaching_face_from_a_revealed_wall() -> None:
+    # The previous scan, from (1, 0) facing +y, saw a wall 2 m away all round, and nothing at all straight behind.
+    n = 360
+    ranges = np.full(n, 2.0)
+    angles = -math.pi + 2 * math.pi / n * np.arange(n)
+    ranges[np.argmin(np.abs(angles - math.pi / 2))] = math.inf  # no return towards -x in the world (beam +90°)
+    pose = (1.0, 0.0, math.pi / 2)
+    points = np.array([[1.0, 1.5], [1.0, 2.5], [1.0, 2.02], [-0.5, 0.0], [3.5, 0.0], [-2.0, 0.0]])
+    got = free_space_violations(points, pose, -math.pi, 2 * math.pi / n, ranges)
+    # nearer than the return: violates; behind it, or within the tolerance: does not; where the previous beam saw
+    # no return, anything violates.
+    assert got.tolist() == [True, False, False, True, False, True]
+    # Velocities only where free space was violated.
+    vel = point_velocities(points, points - [0.0, -0.1], 0.1, 0.25, neighbours=1, can_move=got)
+    assert (vel[:, 1] != 0).tolist() == got.tolist()
+
+
+def test_grazing_and_edge_returns_do_not_count_as_facing() -> None:
+    # A wall at x = 1 seen from the origin: facing near the axis, grazing far along it; an isolated return is an edge.
+    y = np.linspace(-6.0, 6.0, 121)
+    wall = np.column_stack((np.full_like(y, 1.0), y))
+    facing = facing_returns(np.vstack((wall, [[5.0, 0.0]])), max_gap_m=0.3, min_incidence_rad=0.35)
+    assert facing[60] and not facing[0] and not facing[-1]  # the ends have one neighbour only
+    assert not facing[5]  # at y = -5.5 the beam meets the wall at about 10°
+    assert not facing[-1]

@@ -1,0 +1,66 @@
+"""Service logic without processes: one service on a real in-process Zenoh bus, stepped by the test at chosen sim
+times, its inputs published and its outputs recorded by a second peer."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from mjnav.bus import Bus, Publisher, Subscription, wait_until
+from mjnav.runtime import Service, build_config
+
+
+class Harness:
+    """A service instance plus a peer that feeds it and listens to it.
+
+    Args:
+        service_cls: the service class.
+        peer: the ``peer`` fixture (opens buses on the test router).
+        outputs: topics whose messages are recorded, in arrival order, in :attr:`received`.
+        config: config values over the class defaults.
+    """
+
+    def __init__(
+        self,
+        service_cls: type[Service[Any]],
+        peer: Callable[..., Bus],
+        outputs: tuple[str, ...],
+        **config: Any,
+    ) -> None:
+        self.world = peer()
+        self.received: dict[str, list[Any]] = {name: [] for name in outputs}
+        for name in outputs:
+            self.world.subscribe(name, callback=self.received[name].append)
+        cfg = build_config(service_cls.config_class, config, f"{service_cls.name} test config")
+        self.service = service_cls(cfg, peer(), logging.getLogger(f"test.{service_cls.name}"))
+        self.service.configure()
+        self.service.activate()
+        self._pubs: dict[str, Publisher] = {}
+
+    def _subscription(self, name: str) -> Subscription:
+        """The service's subscription to ``name`` (found among its bus's declarations)."""
+        key = self.service.bus.key(name)
+        subs = [d for d in self.service.bus._declared if isinstance(d, Subscription) and d.key == key]
+        assert subs, f"the service does not subscribe to {name}"
+        return subs[0]
+
+    def send(self, name: str, msg: Any) -> None:
+        """Publish ``msg`` on ``name`` and wait until the service's subscription has it."""
+        pub = self._pubs.get(name)
+        if pub is None:
+            pub = self._pubs[name] = self.world.publisher(name)
+        sub = self._subscription(name)
+        assert pub.wait_for_subscribers(10.0)
+        before = sub.count
+        pub.put(msg)
+        assert wait_until(lambda: sub.count > before, 10.0), f"{name} did not arrive"
+
+    def step(self, t: float, expect: dict[str, int] | None = None) -> None:
+        """Step the service at sim time ``t``; with ``expect``, wait until each named output has that many
+        messages in total."""
+        self.service.step(t)
+        for name, count in (expect or {}).items():
+            assert wait_until(lambda n=name, c=count: len(self.received[n]) >= c, 10.0), (
+                f"{name}: {len(self.received[name])} message(s), expected {count}"
+            )
