@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mjnav.estimation import (
+    EstimationError,
     PoseGraph,
     PoseGraphError,
     certify_global_optimality,
@@ -269,7 +270,7 @@ def test_invalid_graphs_and_options_raise() -> None:
         optimize_pose_graph(graph, method="dogleg")  # type: ignore[arg-type]
     with pytest.raises(PoseGraphError, match="poses must be"):
         g2o_chi2(graph, np.zeros((2, 3)))
-    assert issubclass(PoseGraphError, ValueError)
+    assert issubclass(PoseGraphError, ValueError) and issubclass(PoseGraphError, EstimationError)
 
 
 def test_graph_copies_its_inputs() -> None:
