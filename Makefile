@@ -9,8 +9,9 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.mjnav-installed
-# Offscreen rendering for MuJoCo: EGL (Mesa, software) or OSMesa.
-SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libosmesa6
+# Offscreen rendering for MuJoCo: EGL (Mesa, software) or OSMesa. SuiteSparse headers: scikit-sparse (CHOLMOD,
+# the pose graph's sparse Cholesky) builds against them.
+SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libosmesa6 libsuitesparse-dev
 # Only the tests need these: headless Chromium (browser check of the viz snapshot) and docker-compose (validates
 # docker/compose.yaml), geographiclib-tools (CartConvert: fresh geodetic reference points). Without them those
 # tests skip and say why.
