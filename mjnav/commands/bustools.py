@@ -91,11 +91,19 @@ def run_topics(args: argparse.Namespace) -> int:
             first.setdefault(key, now)
             last[key] = now
 
+    alive_now: set[str] = set()
+
+    def on_alive(service: str, up: bool) -> None:
+        with lock:
+            (alive_now.add if up else alive_now.discard)(service)
+
     with _open(args, args.ns) as bus:
         sub = bus.session.declare_subscriber("**", on_sample)
+        bus.watch_alive(on_alive)  # tokens already up arrive during the window too, however slow the router is
         time.sleep(args.duration)  # listening window, not synchronisation
         sub.undeclare()
-        alive = bus.alive_services()
+        with lock:
+            alive = sorted(alive_now)
     rows: list[dict[str, Any]] = []
     for key in sorted(counts):
         try:
