@@ -68,7 +68,8 @@ class ClockJumpedBack(Exception):
 
 
 class _SimClock:
-    """Sim time from the ``clock`` topic; waits are woken by every clock message.
+    """Sim time from the ``clock`` topic; a wait is woken by the clock message that reaches its time (or goes back),
+    not by every tick.
 
     The bus is switched to staged delivery: every other message becomes visible to the service when the next clock
     message arrives (:meth:`~mjnav.bus.Bus.commit`), so a step at sim time t sees what was published before the
@@ -78,6 +79,7 @@ class _SimClock:
     def __init__(self, bus: Bus) -> None:
         self._cond = threading.Condition()
         self._now = math.nan
+        self._waiting_for = -math.inf  # the time a wait is blocked on (-inf: wake on any clock)
         self.jumps_back = 0
         self._bus = bus
         bus.staged = True
@@ -87,10 +89,12 @@ class _SimClock:
         t = ros.seconds(msg.clock)
         self._bus.commit()
         with self._cond:
-            if t < self._now:
+            back = t < self._now
+            if back:
                 self.jumps_back += 1
             self._now = t
-            self._cond.notify_all()
+            if back or t >= self._waiting_for:
+                self._cond.notify_all()
 
     def now(self) -> float:
         with self._cond:
@@ -100,13 +104,17 @@ class _SimClock:
         """Block until sim time >= ``t``; raises ClockJumpedBack once ``jumps_back`` differs from ``jumps``."""
         with self._cond:
             jumps = self.jumps_back if jumps is None else jumps
-            while not (self._now >= t):  # also loops while no clock arrived yet (NaN)
-                if stop.is_set():
-                    raise StopRequested
-                if self.jumps_back != jumps:
-                    raise ClockJumpedBack
-                self._cond.wait(_POLL_S)
-            return self._now
+            self._waiting_for = t
+            try:
+                while not (self._now >= t):  # also loops while no clock arrived yet (NaN)
+                    if stop.is_set():
+                        raise StopRequested
+                    if self.jumps_back != jumps:
+                        raise ClockJumpedBack
+                    self._cond.wait(_POLL_S)
+                return self._now
+            finally:
+                self._waiting_for = -math.inf
 
 
 @dataclass
