@@ -106,7 +106,7 @@ TOPICS: dict[str, Topic] = {
             "rosgraph_msgs/msg/Clock",
             _S,
             "sim",
-            "100 Hz sim time",
+            "20 Hz sim time",
             "Simulation time; every service steps on it",
             express=True,
         ),

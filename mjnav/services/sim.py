@@ -44,7 +44,8 @@ class SimConfig:
         seed: seed of every noise source.
         rtf: real-time factor; 0 runs as fast as the machine allows.
         rate_hz: wall-time loop rate of the service.
-        clock_rate_hz: ``clock`` messages per sim second; also how often ``cmd_vel`` is applied.
+        clock_rate_hz: ``clock`` messages per sim second: the ticks services step on (a multiple of every
+            service's ``rate_hz``) and, in lockstep, the rounds of the barrier.
         odom_rate_hz: ``odom``, ``tf``, ``joint_states`` and ``ground_truth`` per sim second.
         imu_rate_hz: ``imu`` per sim second.
         obstacles_rate_hz: ``obstacles`` (true poses of the world's moving bodies) per sim second; worlds without
@@ -64,7 +65,7 @@ class SimConfig:
     seed: int = 0
     rtf: float = 1.0
     rate_hz: float = 100.0
-    clock_rate_hz: float = 100.0
+    clock_rate_hz: float = 20.0
     odom_rate_hz: float = 50.0
     imu_rate_hz: float = 100.0
     obstacles_rate_hz: float = 10.0
@@ -157,16 +158,19 @@ class SimBridge:
         """Sim seconds between two ``clock`` messages."""
         return self._clock.period
 
+    def apply_command(self) -> None:
+        """Drive the wheels with the newest ``cmd_vel``, if one arrived since the last call."""
+        cmd = self._cmd.take()
+        if cmd is not None:
+            self.sim.set_command(cmd.linear.x, cmd.angular.z)
+            self.commands_applied += 1
+
     def publish_due(self, t: float) -> None:
         """Apply a new ``cmd_vel`` and publish every message due at sim time ``t`` (call every :attr:`tick_s`),
         ``clock`` last."""
         sim = self.sim
         clock_due = self._clock.due(t)
-        if clock_due:
-            cmd = self._cmd.take()
-            if cmd is not None:
-                sim.set_command(cmd.linear.x, cmd.angular.z)
-                self.commands_applied += 1
+        self.apply_command()
         if self._odom.due(t):
             est = sim.odometry()
             stamp = est.stamp_s
@@ -316,6 +320,7 @@ class SimService(Service[SimConfig]):
                     return
             if not barrier.wait(t, max(0.0, deadline - time.monotonic())):
                 return
+            self.bridge.apply_command()  # what the controller commanded at t drives the wheels from t on
             barrier.published(t + tick, tick)
             self.runner.advance(t + tick)
             if time.monotonic() >= deadline:
