@@ -320,7 +320,6 @@ class SimService(Service[SimConfig]):
                     return
             if not barrier.wait(t, max(0.0, deadline - time.monotonic())):
                 return
-            self.bridge.apply_command()  # what the controller commanded at t drives the wheels from t on
             barrier.published(t + tick, tick)
             self.runner.advance(t + tick)
             if time.monotonic() >= deadline:
