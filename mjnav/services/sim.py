@@ -42,7 +42,8 @@ class SimConfig:
     Attributes:
         world: bundled world name (empty, rooms, maze, warehouse) or an MJCF path.
         seed: seed of every noise source.
-        rtf: real-time factor; 0 runs as fast as the machine allows.
+        rtf: real-time factor: at most rtf × wall time in lockstep, rtf × wall time free-running; 0 = as fast as
+            possible.
         rate_hz: wall-time loop rate of the service.
         clock_rate_hz: ``clock`` messages per sim second: the ticks services step on (a multiple of every
             service's ``rate_hz``) and, in lockstep, the rounds of the barrier.
