@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -65,6 +66,15 @@ class GridFrame:
             co, si = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
             lx, ly = co * lx - si * ly, si * lx + co * ly
         return np.column_stack((self.origin_m[0] + lx, self.origin_m[1] + ly))
+
+    def values_at(self, grid: ArrayLike, points: ArrayLike, outside: Any = 0) -> NDArray[Any]:
+        """(N,) values of an (H, W) array on this grid at (N, 2) world points; ``outside`` for points off the grid."""
+        g = np.asarray(grid)
+        idx = self.world_to_cells(points)
+        inside = (idx[:, 0] >= 0) & (idx[:, 0] < g.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < g.shape[1])
+        out = np.full(len(idx), outside, dtype=g.dtype)
+        out[inside] = g[idx[inside, 0], idx[inside, 1]]
+        return out
 
     def world_to_cells(self, points: ArrayLike) -> NDArray[np.int64]:
         """(N, 2) (row, col) cells of (N, 2) world points (x, y); may lie outside the grid."""

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from mjnav.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
+from mjnav.mapping.frame import GridFrame
 from mjnav.msgs.codec import typestore
 
 _NS_PER_S = 1_000_000_000
@@ -250,11 +251,12 @@ def occupancy_grid(t_s: float, frame_id: str, cells: Any, resolution_m: float, o
     return _OccupancyGrid(header=header(t_s, frame_id), info=info, data=grid.reshape(-1))
 
 
-def grid_cells(msg: Any) -> tuple[Any, float, Pose2D]:
-    """The (H, W) int8 cells, resolution (m) and origin pose (x, y, yaw) of a nav_msgs/OccupancyGrid."""
+def grid_frame(msg: Any) -> tuple[Any, GridFrame]:
+    """The (H, W) int8 cells of a nav_msgs/OccupancyGrid (row 0 = lowest y) and their placement in its frame."""
     info = msg.info
     cells = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
-    return cells, float(info.resolution), pose2d(info.origin)
+    origin = pose2d(info.origin)
+    return cells, GridFrame(float(info.resolution), (origin.x, origin.y), cells.shape, origin.theta)
 
 
 def path_msg(t_s: float, frame_id: str, points: Any) -> Any:

@@ -206,17 +206,12 @@ class ControllerService(Service[ControllerConfig]):
         """(M,) True for points on (or next to) a cell the map has as occupied: static, whatever two scans say."""
         msg = self.map_sub.take()
         if msg is not None:
-            cells, res, origin = ros.grid_cells(msg)
-            frame = GridFrame(res, (origin.x, origin.y), cells.shape, origin.theta)
+            cells, frame = ros.grid_frame(msg)
             self.walls = (frame, maximum_filter(cells >= OCCUPIED, size=3))
         if self.walls is None:
             return np.zeros(len(points), dtype=bool)
         frame, walls = self.walls
-        idx = frame.world_to_cells(points)
-        inside = (idx[:, 0] >= 0) & (idx[:, 0] < walls.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < walls.shape[1])
-        out = np.zeros(len(points), dtype=bool)
-        out[inside] = walls[idx[inside, 0], idx[inside, 1]]
-        return out
+        return frame.values_at(walls, points, outside=False)
 
     def _checked(self, pose: Pose2D, v: float, w: float) -> tuple[float, float]:
         """(v, ω) after the collision check against the newest scan (unchanged without one)."""

@@ -17,7 +17,6 @@ from typing import Any, Literal
 import numpy as np
 
 from mjnav.geometry import Pose2D
-from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.planning import (
     ALGORITHMS,
@@ -212,8 +211,7 @@ class PlannerService(Service[PlannerConfig]):
         fresh = stamp != self.grid_stamp
         if goal.cells is not None and not fresh:
             return
-        cells, res, origin = ros.grid_cells(costmap_msg)
-        frame = GridFrame(res, (origin.x, origin.y), cells.shape, origin.theta)
+        cells, frame = ros.grid_frame(costmap_msg)
         occupied, cost = planning_grid(
             cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost
         )
@@ -221,7 +219,7 @@ class PlannerService(Service[PlannerConfig]):
         start = frame.world_to_cell(robot.x, robot.y)
         target = frame.world_to_cell(goal.pose.x, goal.pose.y)
         if frame.contains(*start) and not cells[start] >= 100:
-            occupied = clear_disc(occupied, start, self.config.start_clearance_m / res)
+            occupied = clear_disc(occupied, start, self.config.start_clearance_m / frame.resolution_m)
         remaining = None if goal.cells is None else self._remaining(goal.cells, start)
         blocked_path = remaining is not None and bool(occupied[remaining[:, 0], remaining[:, 1]].any())
         periodic = now - goal.last_plan_t >= self.config.replan_period_s

@@ -14,7 +14,6 @@ from typing import Any, Literal
 import numpy as np
 
 from mjnav.mapping import clearance_m
-from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import ros
 from mjnav.planning.costmap import INSCRIBED
 from mjnav.runtime import Service
@@ -95,13 +94,8 @@ class SmootherService(Service[SmootherConfig]):
         msg = self.costmap.latest()
         if msg is None:
             return np.zeros(len(points))
-        cells, res, origin = ros.grid_cells(msg)
-        frame = GridFrame(res, (origin.x, origin.y), cells.shape, origin.theta)
-        idx = frame.world_to_cells(points)
-        inside = (idx[:, 0] >= 0) & (idx[:, 0] < cells.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < cells.shape[1])
-        clear = np.zeros(len(points))
-        distance = clearance_m(cells >= INSCRIBED, res)
-        clear[inside] = distance[idx[inside, 0], idx[inside, 1]]
+        cells, frame = ros.grid_frame(msg)
+        clear = frame.values_at(clearance_m(cells >= INSCRIBED, frame.resolution_m), points, outside=0.0)
         return np.maximum(clear - self.config.margin_m, 0.0)
 
     def smooth(self, plan_points: Any) -> Any:

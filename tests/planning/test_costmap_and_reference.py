@@ -62,3 +62,6 @@ def test_a_rotated_grid_frame_round_trips_and_matches_hand_worked_cells() -> Non
     assert [frame.world_to_cell(x, y) for x, y in centres] == [(0, 0), (3, 5)]
     with pytest.raises(InvalidParameterError):
         GridFrame(0.5, (0.0, 0.0), (4, 6), yaw_rad=math.nan)
+    # Values at world points: the cell's value inside the grid, the given fill outside it.
+    grid = np.arange(24).reshape(4, 6)
+    np.testing.assert_array_equal(frame.values_at(grid, [[0.75, 2.25], [-0.75, 4.75], [1.1, 2.7]], -1), [0, 23, -1])

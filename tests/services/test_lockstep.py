@@ -7,13 +7,12 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 from typing import Any
 
 from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import ros
 from tests.conftest import free_port
-from tests.services.test_navigation import _mjnav
+from tests.services.test_navigation import _mjnav, up_process
 
 #: Figures that depend on the machine (wall time), not on the mission.
 WALL_KEYS = {"wall_s", "achieved_rtf"}
@@ -51,42 +50,29 @@ def test_same_seed_same_mission_whatever_the_load() -> None:
 def test_a_stalled_or_killed_participant_never_hangs_sim_time() -> None:
     """SIGSTOP a service: after lockstep_timeout_s the sim names it and goes on; SIGCONT: it rejoins. SIGKILL it:
     the sim goes on at once; the launcher restarts it and it joins again."""
-    port = free_port()
-    proc = _mjnav(
-        "up", "--only", "sim,smoother", "--port", str(port), "--headless", "--set", "sim.world=empty",
-        "--set", "sim.rtf=0", "--set", "sim.lockstep_timeout_s=1.0",
-    )  # fmt: skip
-    lines: list[str] = []
-    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)  # type: ignore[arg-type]
-    reader.start()
-    try:
-        with Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus:
-            clock = bus.subscribe("clock")
-            status = bus.subscribe("status", service="smoother")
-            first = status.wait(60.0)
-            assert first is not None, "".join(lines)[-2000:]
+    sets = ("sim.world=empty", "sim.rtf=0", "sim.lockstep_timeout_s=1.0")
+    with (
+        up_process("--only", "sim,smoother", *(x for item in sets for x in ("--set", item))) as (port, _, lines),
+        Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus,
+    ):
+        clock = bus.subscribe("clock")
+        status = bus.subscribe("status", service="smoother")
+        first = status.wait(60.0)
+        assert first is not None, "".join(lines)[-2000:]
 
-            def sim_time_passes(after: float) -> bool:
-                return clock.wait(30.0, lambda c: ros.seconds(c.clock) > after + 5.0) is not None
+        def sim_time_passes(after: float) -> bool:
+            return clock.wait(30.0, lambda c: ros.seconds(c.clock) > after + 5.0) is not None
 
-            os.kill(first.pid, signal.SIGSTOP)
-            try:
-                assert wait_until(lambda: any("smoother has not finished its step" in x for x in lines), 30.0)
-                assert sim_time_passes(ros.seconds(clock.latest().clock))
-            finally:
-                os.kill(first.pid, signal.SIGCONT)
-            assert wait_until(lambda: any("smoother reports again and rejoins" in x for x in lines), 30.0)
-            os.kill(first.pid, signal.SIGKILL)
-            assert wait_until(lambda: any("smoother left" in x for x in lines), 30.0)
-            assert sim_time_passes(ros.seconds(clock.latest().clock))
-            again = status.wait(60.0, lambda s: s.pid != first.pid)
-            assert again is not None, "the launcher did not restart the smoother"
-            assert wait_until(lambda: sum("smoother joined" in x for x in lines) >= 2, 30.0)
-    finally:
-        proc.send_signal(signal.SIGINT)
+        os.kill(first.pid, signal.SIGSTOP)
         try:
-            proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        reader.join(5)
-    assert proc.returncode == 0, "".join(lines)[-3000:]
+            assert wait_until(lambda: any("smoother has not finished its step" in x for x in lines), 30.0)
+            assert sim_time_passes(ros.seconds(clock.latest().clock))
+        finally:
+            os.kill(first.pid, signal.SIGCONT)
+        assert wait_until(lambda: any("smoother reports again and rejoins" in x for x in lines), 30.0)
+        os.kill(first.pid, signal.SIGKILL)
+        assert wait_until(lambda: any("smoother left" in x for x in lines), 30.0)
+        assert sim_time_passes(ros.seconds(clock.latest().clock))
+        again = status.wait(60.0, lambda s: s.pid != first.pid)
+        assert again is not None, "the launcher did not restart the smoother"
+        assert wait_until(lambda: sum("smoother joined" in x for x in lines) >= 2, 30.0)

@@ -46,24 +46,17 @@ def _mjnav(*args: str) -> subprocess.Popen[str]:
 
 
 @contextmanager
-def running_stack(*sets: str) -> Iterator[tuple[Bus, MissionClient, subprocess.Popen[str], list[str]]]:
-    """`mjnav up` with the shipped stack; yields a bus on its router, a mission client, the process, its output."""
+def up_process(*args: str) -> Iterator[tuple[int, subprocess.Popen[str], list[str]]]:
+    """`mjnav up ARGS` on a free port; yields the port, the process and its output lines (read as they come).
+    Stops it with SIGINT at the end and asserts it exited 0."""
     port = free_port()
-    args = ["up", "--port", str(port), "--headless", "--set", f"sim.rtf={RTF}"]
-    for item in sets:
-        args += ["--set", item]
-    proc = _mjnav(*args)
+    proc = _mjnav("up", "--port", str(port), "--headless", *args)
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)  # type: ignore[arg-type]
     reader.start()
-    bus = Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",)))
     try:
-        client = MissionClient(bus)
-        assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
-        assert client.truth.wait(60.0) is not None
-        yield bus, client, proc, lines
+        yield port, proc, lines
     finally:
-        bus.close()
         if proc.poll() is None:
             proc.send_signal(signal.SIGINT)
             try:
@@ -72,6 +65,23 @@ def running_stack(*sets: str) -> Iterator[tuple[Bus, MissionClient, subprocess.P
                 proc.kill()
         reader.join(5)
     assert proc.returncode == 0, "".join(lines)[-3000:]
+
+
+@contextmanager
+def running_stack(*sets: str) -> Iterator[tuple[Bus, MissionClient, subprocess.Popen[str], list[str]]]:
+    """`mjnav up` with the shipped stack; yields a bus on its router, a mission client, the process, its output."""
+    args = ["--set", f"sim.rtf={RTF}"]
+    for item in sets:
+        args += ["--set", item]
+    with up_process(*args) as (port, proc, lines):
+        bus = Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",)))
+        try:
+            client = MissionClient(bus)
+            assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
+            assert client.truth.wait(60.0) is not None
+            yield bus, client, proc, lines
+        finally:
+            bus.close()
 
 
 def _true_map(world: str, path: Path) -> Path:
