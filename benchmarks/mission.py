@@ -52,14 +52,19 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / _TICKS  # utime + stime
 
 
-def run_once(world: str, rtf: str, seed: int, free_running: bool = False) -> dict[str, object]:
-    """One mission at one real-time factor ("max" = as fast as the services allow)."""
+def run_once(
+    world: str, rtf: str, seed: int, free_running: bool = False, overrides: tuple[str, ...] = ()
+) -> dict[str, object]:
+    """One mission at one real-time factor ("max" = as fast as the services allow); ``overrides``: extra
+    ``service.key=value`` settings for ``mjnav up --set``."""
     info = world_info(world)
     assert info.goal is not None, f"world {world} has no default goal"
     port = _free_port()
     participants = ["mapper", "planner", "smoother", "controller", "mission"]
     cmd = [sys.executable, "-m", "mjnav", "up", "--port", str(port), "--headless", "--seed", str(seed)]
     cmd += ["--set", f"sim.world={world}", "--set", f"sim.rtf={'0' if rtf == 'max' else rtf}"]
+    for item in overrides:
+        cmd += ["--set", item]
     cmd += ["--free-running"] if free_running else ["--set", f"sim.lockstep_participants={json.dumps(participants)}"]
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -120,6 +125,9 @@ def main() -> int:
     parser.add_argument("--rtf", default="max", help="real-time factor: max (default) or a number")
     parser.add_argument("--free-running", action="store_true", help="sim on wall time instead of lockstep")
     parser.add_argument("--quick", action="store_true", help="rooms, seed 0 only")
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="SERVICE.KEY=VALUE", help="a stack setting (repeatable)"
+    )
     parser.add_argument("--json", action="store_true", help="print JSON")
     args = parser.parse_args()
     if args.quick:
@@ -130,7 +138,7 @@ def main() -> int:
     rows = []
     for world in worlds:
         for seed in seeds:
-            rows.append(run_once(world, args.rtf, seed, args.free_running))
+            rows.append(run_once(world, args.rtf, seed, args.free_running, tuple(args.set)))
             if not args.json:
                 _print_row(rows[-1])
     if args.json:

@@ -214,14 +214,21 @@ def time_to_collision(
     t = np.arange(0.0, params.moving_horizon_s + 1e-9, params.step_s)
     robot = _arc(v_mps, omega_radps, t)  # (K, 2)
     moving = np.any(u != 0.0, axis=1)
-    # (M, K) squared distances between the robot and each point at each time.
-    d2 = (p[:, None, 0] + u[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
-        p[:, None, 1] + u[:, None, 1] * t[None, :] - robot[None, :, 1]
-    ) ** 2
-    hit = np.empty(d2.shape, dtype=bool)
-    hit[~moving] = (d2[~moving] < reach * reach) & (t[None, :] <= params.static_horizon_s + 1e-9)
-    hit[moving] = d2[moving] < (reach + params.uncertainty_growth_mps * t[None, :]) ** 2
-    k = np.flatnonzero(hit.any(axis=0))
+    # Static points only count within the static horizon, moving ones (a disc that grows with the time ahead)
+    # within the moving horizon: each set is tested over its own times, (M_set, K_set) distances.
+    ks = int(np.searchsorted(t, params.static_horizon_s + 1e-9, side="right"))
+    hit = np.zeros(len(t), dtype=bool)
+    ps = p[~moving]
+    if len(ps) and ks:
+        d2 = (ps[:, None, 0] - robot[None, :ks, 0]) ** 2 + (ps[:, None, 1] - robot[None, :ks, 1]) ** 2
+        hit[:ks] |= (d2 < reach * reach).any(axis=0)
+    pm, um = p[moving], u[moving]
+    if len(pm):
+        d2 = (pm[:, None, 0] + um[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
+            pm[:, None, 1] + um[:, None, 1] * t[None, :] - robot[None, :, 1]
+        ) ** 2
+        hit |= (d2 < (reach + params.uncertainty_growth_mps * t[None, :]) ** 2).any(axis=0)
+    k = np.flatnonzero(hit)
     return float(t[k[0]]) if len(k) else math.inf
 
 

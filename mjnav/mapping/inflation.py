@@ -71,15 +71,38 @@ def _nonneg(value: Any, name: str) -> float:
     return v
 
 
-def _edt(obstacles: NDArray[np.bool_], resolution_m: float) -> NDArray[np.float64]:
-    """Centre-to-centre Euclidean distance (m) to the nearest True cell; +inf everywhere if there is none."""
-    if not obstacles.any():
-        return np.full(obstacles.shape, np.inf)
-    return np.asarray(ndimage.distance_transform_edt(~obstacles, sampling=resolution_m), dtype=np.float64)
+def _near_box(obstacles: NDArray[np.bool_], resolution_m: float, within_m: float) -> tuple[slice, slice]:
+    """Rows and columns of the obstacles' bounding box grown by ``within_m`` (clipped to the grid); it holds every
+    obstacle, so a distance transform inside it is exact there, and every cell outside it is farther than
+    ``within_m`` from all obstacles."""
+    rows = np.flatnonzero(obstacles.any(axis=1))
+    cols = np.flatnonzero(obstacles.any(axis=0))
+    pad = math.ceil(within_m / resolution_m) + 1 if math.isfinite(within_m) else max(obstacles.shape)
+    return (
+        slice(max(rows[0] - pad, 0), min(rows[-1] + pad + 1, obstacles.shape[0])),
+        slice(max(cols[0] - pad, 0), min(cols[-1] + pad + 1, obstacles.shape[1])),
+    )
+
+
+def _edt(obstacles: NDArray[np.bool_], resolution_m: float, within_m: float = math.inf) -> NDArray[np.float64]:
+    """Centre-to-centre Euclidean distance (m) to the nearest True cell; +inf everywhere if there is none.
+
+    With ``within_m`` finite, only distances up to ``within_m`` are exact; cells farther than that from every
+    obstacle may get +inf (the transform runs on :func:`_near_box` only: most of a map under construction is empty).
+    """
+    d = np.full(obstacles.shape, np.inf)
+    if obstacles.any():
+        box = _near_box(obstacles, resolution_m, within_m)
+        d[box] = ndimage.distance_transform_edt(~obstacles[box], sampling=resolution_m)
+    return d
 
 
 def clearance_m(
-    obstacles: ArrayLike, resolution_m: float, *, norm: Literal["euclidean", "chebyshev"] = "euclidean"
+    obstacles: ArrayLike,
+    resolution_m: float,
+    *,
+    norm: Literal["euclidean", "chebyshev"] = "euclidean",
+    within_m: float = math.inf,
 ) -> NDArray[np.float64]:
     """Distance from every cell centre to the nearest obstacle cell centre.
 
@@ -91,23 +114,29 @@ def clearance_m(
             |Δcol|) — then an axis-aligned square box of half-width h centred on a cell centre contains no
             obstacle cell *centre* iff h < clearance, and no part of an obstacle cell iff
             h < clearance − res/2, which makes it the right measure for per-point box constraints.
+        within_m: distances up to this are exact; a cell farther than this from every obstacle may read +inf.
+            A finite value restricts the transform to the obstacles' surroundings (faster on sparse maps), for
+            callers that clip the clearance anyway.
 
     Returns:
         (H, W) float64, metres; 0 on obstacle cells; +inf everywhere if there is no obstacle.
 
     Raises:
         InvalidGridError: ``obstacles`` is not a non-empty 2-D bool array.
-        InvalidParameterError: bad resolution or unknown norm.
+        InvalidParameterError: bad resolution, ``within_m`` or norm.
     """
     obs = _bool_grid(obstacles, "obstacles")
     res = _resolution(resolution_m)
+    if not within_m >= 0.0:
+        raise InvalidParameterError(f"within_m must be >= 0, got {within_m}")
     if norm == "euclidean":
-        return _edt(obs, res)
+        return _edt(obs, res, within_m)
     if norm == "chebyshev":
-        if not obs.any():
-            return np.full(obs.shape, np.inf)
-        k = ndimage.distance_transform_cdt(~obs, metric="chessboard")
-        return np.asarray(k, dtype=np.float64) * res
+        d = np.full(obs.shape, np.inf)
+        if obs.any():
+            box = _near_box(obs, res, within_m)
+            d[box] = ndimage.distance_transform_cdt(~obs[box], metric="chessboard") * res
+        return d
     raise InvalidParameterError(f"norm must be 'euclidean' or 'chebyshev', got {norm!r}")
 
 
@@ -193,7 +222,7 @@ def inflation_costmap(
     obstacles = occ >= int(occupied_threshold)
     if unknown == "lethal":
         obstacles = obstacles | is_unknown
-    d = _edt(obstacles, res)
+    d = _edt(obstacles, res, within_m=r_out)  # cells farther than r_out cost 0: their exact distance is not needed
     cost = np.zeros(occ.shape, dtype=np.int8)
     decay = (d > r_in) & (d <= r_out)
     cost[decay] = np.floor(MAX_DECAY_COST * np.exp(-scale * (d[decay] - r_in))).astype(np.int8)

@@ -8,6 +8,7 @@ walls. An empty plan (goal ended) gives an empty path.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -76,6 +77,9 @@ class SmootherService(Service[SmootherConfig]):
         self.plan = self.bus.subscribe("plan")
         self.costmap = self.bus.subscribe("costmap")
         self.path_pub = self.bus.publisher("path")
+        # The clearance field of the newest costmap (a distance transform of the whole grid): computed once per
+        # costmap, which changes at the mapper's publish rate, not at every plan.
+        self._clearance: tuple[Any, Any, Any] | None = None
         # Load the compiled kernels now, not when the first plan arrives.
         warm = np.column_stack((np.linspace(0.0, 1.0, 12), 0.05 * np.sin(np.linspace(0.0, 6.0, 12))))
         self.smooth(warm)
@@ -94,8 +98,14 @@ class SmootherService(Service[SmootherConfig]):
         msg = self.costmap.latest()
         if msg is None:
             return np.zeros(len(points))
-        cells, frame = ros.grid_frame(msg)
-        clear = frame.values_at(clearance_m(cells >= INSCRIBED, frame.resolution_m), points, outside=0.0)
+        if self._clearance is None or self._clearance[0] is not msg:
+            cells, frame = ros.grid_frame(msg)
+            # Clearances beyond what a box of half-width max_deviation_m needs (its corners: √2·max_deviation_m)
+            # plus the margin change nothing; farther cells may read +inf.
+            within = math.sqrt(2.0) * self.config.max_deviation_m + self.config.margin_m + frame.resolution_m
+            self._clearance = (msg, frame, clearance_m(cells >= INSCRIBED, frame.resolution_m, within_m=within))
+        _, frame, field = self._clearance
+        clear = frame.values_at(field, points, outside=0.0)
         return np.maximum(clear - self.config.margin_m, 0.0)
 
     def smooth(self, plan_points: Any) -> Any:

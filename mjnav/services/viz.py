@@ -26,6 +26,8 @@ from mjnav.runtime import Service
 
 #: Per-topic draw failures logged in full before they are only counted.
 _LOG_FIRST = 5
+#: Layers drawn as PNG textures, at ``grid_rate_hz``.
+_GRIDS = ("map", "costmap")
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,8 @@ class VizConfig:
         pose_topic: ``ground_truth`` (true pose, map frame) or ``odom`` (wheel odometry, drifts).
         scan_point_size_m: drawn size of one scan return, metres.
         draw_costmap: draw the ``costmap`` topic over the map.
+        grid_rate_hz: the map and costmap (a PNG texture each, the costly layers) are redrawn at most this often,
+            wall time; the robot, scan and paths follow ``rate_hz``.
     """
 
     rate_hz: float = 10.0
@@ -63,10 +67,12 @@ class VizConfig:
     pose_topic: str = "ground_truth"
     scan_point_size_m: float = 0.06
     draw_costmap: bool = True
+    grid_rate_hz: float = 2.0
 
     def __post_init__(self) -> None:
-        if not self.rate_hz > 0.0:
-            raise ValueError(f"rate_hz must be > 0, got {self.rate_hz}")
+        for name in ("rate_hz", "grid_rate_hz"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         for name in ("web_port", "zmq_port"):
             if not 0 <= getattr(self, name) <= 65535:
                 raise ValueError(f"{name} must be 0..65535, got {getattr(self, name)}")
@@ -113,6 +119,7 @@ class VizService(Service[VizConfig]):
     def activate(self) -> None:
         cfg = self.config
         self._started = time.monotonic()
+        self._next_grid = self._started
         self._next_snapshot = self._started + cfg.static_html_period_s if cfg.static_html_period_s else None
         self.view.setup_viewer()
         if cfg.world:
@@ -131,7 +138,13 @@ class VizService(Service[VizConfig]):
     def step(self, now: float) -> None:
         if self.view.model is None and not self._resolve_world():
             return
+        wall = time.monotonic()
+        grids_due = wall >= self._next_grid
+        if grids_due:
+            self._next_grid = wall + 1.0 / self.config.grid_rate_hz
         for name, sub in self.snapshot_subs.items():
+            if name in _GRIDS and not grids_due:
+                continue  # the newest grid stays in the subscription until the next grid tick
             msg = sub.take()
             if msg is not None:
                 self._draw(name, msg)

@@ -89,11 +89,11 @@ def occupancy_rgba(grid: Any, kind: str = "map") -> NDArray[np.uint8]:
 
 
 def png_bytes(image: NDArray[np.uint8]) -> bytes:
-    """Encode an (H, W, 3|4) uint8 image as PNG."""
+    """Encode an (H, W, 3|4) uint8 image as PNG (fastest zlib level: maps are redrawn often, and mostly flat)."""
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(image).save(buf, format="PNG", optimize=False)
+    Image.fromarray(image).save(buf, format="PNG", optimize=False, compress_level=1)
     return buf.getvalue()
 
 

@@ -162,3 +162,44 @@ def test_clearance_rejects_bad_input() -> None:
         clearance_m(np.zeros((3, 3), dtype=bool), 0.1, norm="manhattan")  # type: ignore[arg-type]
     with pytest.raises(InvalidParameterError):
         inflate_mask(np.zeros((3, 3), dtype=bool), 0.1, float("nan"))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_costmap_equals_the_whole_grid_brute_force(seed: int) -> None:
+    """The costmap transforms only the obstacles' bounding box grown by the inflation radius: every cell must still
+    get the cost of its brute-force nearest-obstacle distance (obstacles anywhere, also near the grid's edges)."""
+    rng = np.random.default_rng(seed)
+    h, w, res = 60, 70, 0.05
+    occ = np.full((h, w), -1, dtype=np.int8)
+    r0, c0 = rng.integers(0, h - 10), rng.integers(0, w - 10)
+    occ[r0 : r0 + 20, c0 : c0 + 25] = 0  # a known patch, somewhere
+    blobs = rng.integers(0, [h, w], size=(4, 2))
+    occ[blobs[:, 0], blobs[:, 1]] = 100
+    obstacles = occ >= 65
+    r_in, r_out, scale = 0.2, 0.7, 5.0
+    got = inflation_costmap(occ, res, r_in, r_out, cost_scaling_factor=scale)
+    rr, cc = np.indices((h, w))
+    orr, occ_c = np.nonzero(obstacles)
+    d = np.sqrt(((rr[..., None] - orr) ** 2 + (cc[..., None] - occ_c) ** 2).min(axis=-1)) * res
+    want = np.zeros((h, w), dtype=np.int8)
+    decay = (d > r_in) & (d <= r_out)
+    want[decay] = np.floor(98 * np.exp(-scale * (d[decay] - r_in))).astype(np.int8)
+    want[(d > 0) & (d <= r_in)] = INSCRIBED_COST
+    want[obstacles] = LETHAL_COST
+    want[(occ < 0) & (want < INSCRIBED_COST)] = -1
+    np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("norm", ["euclidean", "chebyshev"])
+def test_clearance_within_is_exact_up_to_the_bound(norm: str) -> None:
+    rng = np.random.default_rng(3)
+    obs = np.zeros((80, 90), dtype=bool)
+    obs[rng.integers(20, 40, 5), rng.integers(30, 60, 5)] = True
+    full = clearance_m(obs, 0.05, norm=norm)  # type: ignore[arg-type]
+    near = clearance_m(obs, 0.05, norm=norm, within_m=0.4)  # type: ignore[arg-type]
+    close = full <= 0.4
+    np.testing.assert_array_equal(near[close], full[close])
+    assert np.all(near[~close] > 0.4)
+    assert np.isinf(near[79, 0]) and np.isfinite(full[79, 0])  # far cells were not transformed
+    with pytest.raises(InvalidParameterError):
+        clearance_m(obs, 0.05, within_m=-1.0)
