@@ -3,6 +3,7 @@
 from mjnav.bus.bus import (
     Bus,
     BusStats,
+    BusUnavailable,
     NoReply,
     Publisher,
     RemoteError,
@@ -27,6 +28,7 @@ __all__ = [
     "BusConfig",
     "BusConfigError",
     "BusStats",
+    "BusUnavailable",
     "NoReply",
     "Publisher",
     "RemoteError",

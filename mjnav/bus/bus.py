@@ -48,6 +48,10 @@ class NoReply(TimeoutError):
     """No endpoint answered a request within its timeout."""
 
 
+class BusUnavailable(ConnectionError):
+    """The Zenoh session could not be opened: no router answered in time, or a listen port is taken."""
+
+
 def cdr_encoding(msgtype: str) -> zenoh.Encoding:
     """The Zenoh encoding mjnav puts on its samples: ``application/cdr;<ros type>``."""
     return zenoh.Encoding.APPLICATION_CDR.with_schema(msgtype)
@@ -307,8 +311,18 @@ class Bus:
 
     @classmethod
     def open(cls, config: BusConfig, namespace: str = DEFAULT_NAMESPACE) -> Bus:
-        """Open a Zenoh session with ``config`` and wrap it."""
-        return cls(zenoh.open(config.to_zenoh()), namespace, owns_session=True)
+        """Open a Zenoh session with ``config`` and wrap it.
+
+        Raises:
+            BusUnavailable: nothing answered on ``config.connect`` within ``config.connect_timeout_s``, or an
+                endpoint of ``config.listen`` cannot be bound (port in use).
+        """
+        try:
+            session = zenoh.open(config.to_zenoh())
+        except zenoh.ZError as exc:
+            where = ", ".join(config.listen if config.mode == "router" else config.connect)
+            raise BusUnavailable(f"cannot open a Zenoh {config.mode} session on {where}: {exc}") from exc
+        return cls(session, namespace, owns_session=True)
 
     def __enter__(self) -> Bus:
         return self

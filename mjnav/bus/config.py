@@ -44,18 +44,23 @@ class BusConfig:
         connect: endpoints to connect to, e.g. ``("tcp/127.0.0.1:7447",)``.
         listen: endpoints to listen on; ``tcp/127.0.0.1:0`` picks a free loopback port.
         multicast_scouting: discover peers by UDP multicast (off by default: explicit endpoints only).
+        connect_timeout_s: give up opening the session when no ``connect`` endpoint answers within this many
+            seconds (:class:`~mjnav.bus.BusUnavailable`); None (services) keeps retrying until a router appears.
     """
 
     mode: str = "peer"
     connect: tuple[str, ...] = (DEFAULT_ROUTER,)
     listen: tuple[str, ...] = ("tcp/127.0.0.1:0",)
     multicast_scouting: bool = False
+    connect_timeout_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise BusConfigError(f"zenoh mode must be one of {MODES}, got {self.mode!r}")
         for endpoint in (*self.connect, *self.listen):
             _check_endpoint(endpoint)
+        if self.connect_timeout_s is not None and not self.connect_timeout_s > 0:
+            raise BusConfigError(f"connect_timeout_s must be > 0, got {self.connect_timeout_s}")
 
     def to_zenoh(self) -> Any:
         """A ``zenoh.Config`` for this configuration."""
@@ -67,9 +72,13 @@ class BusConfig:
         cfg.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
         cfg.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast_scouting))
         if self.mode != "router":
-            # Keep retrying the router instead of failing when a service starts before it.
-            cfg.insert_json5("connect/timeout_ms", json.dumps(-1))
-            cfg.insert_json5("connect/exit_on_failure", json.dumps(False))
+            if self.connect_timeout_s is None:
+                # Keep retrying the router instead of failing when a service starts before it.
+                cfg.insert_json5("connect/timeout_ms", json.dumps(-1))
+                cfg.insert_json5("connect/exit_on_failure", json.dumps(False))
+            else:
+                cfg.insert_json5("connect/timeout_ms", json.dumps(max(1, round(1000 * self.connect_timeout_s))))
+                cfg.insert_json5("connect/exit_on_failure", json.dumps(True))
         return cfg
 
 

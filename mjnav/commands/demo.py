@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         if out is not None and "viz" in stack.names():
             overrides.setdefault("viz", []).append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
         add_service_overrides(stack, args.set, overrides)
-    except (ConfigError, ValueError, OSError, KeyError) as exc:
+    except (ConfigError, ValueError, OSError, LookupError) as exc:  # LookupError: an unknown world
         print(f"mjnav demo: {exc}", file=sys.stderr)
         return 2
 
@@ -149,7 +149,8 @@ def run(args: argparse.Namespace) -> int:
             extra_participants=[MISSION],
             seed=args.seed,
         )
-    except ConfigError as exc:
+        launcher.check()
+    except (ConfigError, ValueError) as exc:
         print(f"mjnav demo: {exc}", file=sys.stderr)
         return 2
     codes: list[int] = []

@@ -20,33 +20,45 @@ def register(sub: Any) -> None:
         help="check that the router answers and services are alive",
         description=(
             "Exit 0 when the Zenoh router (or a peer) is reachable and every named service holds its liveliness "
-            "token mjnav/alive/<ns>/<service> (with --status: also reports itself active on <ns>/status/<service>); "
-            "exit 1 otherwise, naming what is missing. With no service named, only the connection is checked."
+            "token mjnav/alive/<ns>/<service> (with --status: also reports itself active on <ns>/status/<service> "
+            "and its loop is moving: its step count grows between two status messages); exit 1 otherwise, naming "
+            "what is missing, stalled or unreachable (never waits longer than --timeout). With no service named, "
+            "only the connection is checked."
         ),
         epilog="Examples: mjnav health --connect tcp/127.0.0.1:7447   mjnav health sim mapper --timeout 5",
     )
     p.add_argument("services", nargs="*", metavar="SERVICE", help="services that must be alive")
     p.add_argument("--ns", default="robot0", help="namespace of the services (default robot0)")
     p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="give up after S seconds (default 5)")
-    p.add_argument("--status", action="store_true", help="also require an 'active' status message from each")
+    p.add_argument(
+        "--status",
+        action="store_true",
+        help="also require an 'active' status from each, with a step count that moves (statuses come every second)",
+    )
     add_bus_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """``mjnav health``."""
-    from mjnav.bus import Bus, BusConfigError, bus_config_from_args, wait_until
+    from dataclasses import replace
+
+    from mjnav.bus import Bus, BusConfigError, BusUnavailable, bus_config_from_args, wait_until
     from mjnav.runtime.logs import setup_logging
 
     setup_logging("ERROR")
     try:
-        config = bus_config_from_args(args)
         if not args.timeout > 0:
             raise ValueError("--timeout must be > 0")
-        bus = Bus.open(config, args.ns)
+        config = replace(bus_config_from_args(args), connect_timeout_s=args.timeout)
     except (BusConfigError, ValueError) as exc:
         print(f"mjnav health: {exc}", file=sys.stderr)
         return 2
+    try:
+        bus = Bus.open(config, args.ns)
+    except BusUnavailable:
+        print(f"unhealthy: no Zenoh router or peer reachable at {', '.join(config.connect)}", file=sys.stderr)
+        return 1
     deadline = time.monotonic() + args.timeout
     problems: list[str] = []
     with bus:
@@ -63,16 +75,30 @@ def run(args: argparse.Namespace) -> int:
         if status_sub is not None:
             keys = {s: bus.key("status", service=s) for s in args.services if s not in missing}
 
-            def states() -> dict[str, int | None]:
-                latest = status_sub.latest_by_key()
-                return {s: (int(latest[k].state) if k in latest else None) for s, k in keys.items()}
+            first_steps: dict[str, int] = {}
 
-            wait_until(lambda: all(v == _ACTIVE for v in states().values()), max(0.0, deadline - time.monotonic()))
-            for s, state in states().items():
-                if state is None:
+            def states() -> dict[str, tuple[int, int] | None]:
+                latest = status_sub.latest_by_key()
+                out: dict[str, tuple[int, int] | None] = {}
+                for s, k in keys.items():
+                    if k in latest:
+                        first_steps.setdefault(s, int(latest[k].steps))
+                        out[s] = (int(latest[k].state), int(latest[k].steps))
+                    else:
+                        out[s] = None
+                return out
+
+            def good() -> bool:
+                return all(v is not None and v[0] == _ACTIVE and v[1] > first_steps[s] for s, v in states().items())
+
+            wait_until(good, max(0.0, deadline - time.monotonic()), 0.05)
+            for s, latest in states().items():
+                if latest is None:
                     problems.append(f"{s}: no status on {keys[s]}")
-                elif state != _ACTIVE:
-                    problems.append(f"{s}: status state {state}, not active")
+                elif latest[0] != _ACTIVE:
+                    problems.append(f"{s}: status state {latest[0]}, not active")
+                elif latest[1] <= first_steps[s]:
+                    problems.append(f"{s}: loop stalled (step count stuck at {latest[1]})")
     if problems:
         print("unhealthy: " + "; ".join(problems), file=sys.stderr)
         return 1

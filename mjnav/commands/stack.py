@@ -12,6 +12,7 @@ from typing import Any
 def register(sub: Any) -> None:
     """Add the ``run`` and ``up`` commands."""
     from mjnav.bus import DEFAULT_PORT, add_bus_arguments
+    from mjnav.runtime.launcher import HUNG_TIMEOUT_S
 
     run = sub.add_parser(
         "run",
@@ -41,9 +42,12 @@ def register(sub: Any) -> None:
         help="run the whole stack on an embedded Zenoh router",
         description=(
             "Start a Zenoh router in this process on 127.0.0.1:PORT and every service of the stack as a child "
-            "process connected to it. Output is prefixed [service]; a crashed service is restarted (bounded, "
-            "logged). Ctrl-C or --duration stops the services in reverse order and exits 0. Any Zenoh client "
-            "can join at tcp/127.0.0.1:PORT."
+            "process connected to it. Output is prefixed [service]; a crashed or hung service (no status for "
+            "--hung-timeout seconds) is restarted (bounded, logged); services resume from the run's checkpoints "
+            "(the map, the active goal). Every setting, the world and the port are checked before anything "
+            "starts (exit 2 naming the problem). Ctrl-C or --duration stops the services in reverse order and "
+            "exits 0; the services die with this process, however it dies. Any Zenoh client can join at "
+            "tcp/127.0.0.1:PORT."
         ),
         epilog="Example: mjnav up --only sim --duration 10 --set sim.world=maze",
     )
@@ -76,6 +80,14 @@ def register(sub: Any) -> None:
         action="store_true",
         help="let the sim run on wall time without waiting for the services (default: lockstep, sim time advances "
         "only when every service on sim time has finished the step that is due)",
+    )
+    up.add_argument(
+        "--hung-timeout",
+        type=float,
+        default=HUNG_TIMEOUT_S,
+        metavar="S",
+        help=f"kill and restart a running service whose status heartbeat stopped for S wall seconds "
+        f"(default {HUNG_TIMEOUT_S:g})",
     )
     up.add_argument("--list", action="store_true", help="list the stack's services and exit")
     up.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
@@ -139,7 +151,9 @@ def run_up(args: argparse.Namespace) -> int:
             extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,
             lockstep=not args.free_running,
             seed=args.seed,
+            hung_timeout_s=args.hung_timeout,
         )
+        launcher.check()
     except (ConfigError, ValueError) as exc:
         print(f"mjnav up: {exc}", file=sys.stderr)
         return 2

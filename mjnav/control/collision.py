@@ -237,7 +237,8 @@ def safe_command(
 ) -> tuple[float, float, float]:
     """The command to send instead of (v, ω): the same curvature at the first collision-free speed of v,
     ``max_speed_mps``, 0.75 v, 0.5 v, 0.25 v, 0 and, last, straight back at half ``max_speed_mps`` (out of a
-    crossing obstacle's way), else the one whose collision is furthest away.
+    crossing obstacle's way), else the one whose collision is furthest away. A robot already within radius +
+    margin of a point gets the first of those commands that does not bring it closer, else a stop.
 
     Args:
         v_mps, omega_radps: the tracker's command (forward speed >= 0).
@@ -260,4 +261,32 @@ def safe_command(
         if best is None or ttc > best[2]:
             best = (s, w, ttc)
     assert best is not None
-    return best
+    if best[2] > 0.0:
+        return best
+    # Already within radius + margin of a point: every command "collides" at once. Only a command that does not
+    # bring the robot any closer over the static horizon may go (the first in the order above: moving away keeps
+    # the robot going), else it stops — never the original command into the obstacle.
+    now = _closest_approach(0.0, 0.0, points_xy, velocities_mps, params)
+    for s, w in candidates:
+        if _closest_approach(s, w, points_xy, velocities_mps, params) >= now - 1e-9:
+            return s, w, 0.0
+    return 0.0, 0.0, 0.0
+
+
+def _closest_approach(
+    v_mps: float, omega_radps: float, points_xy: ArrayLike, velocities_mps: ArrayLike, params: CollisionCheckParams
+) -> float:
+    """Smallest distance (m) between the robot centre on the arc (v, ω) and any point within ``range_m`` (moving
+    ones at their velocities) over the static horizon; inf without points."""
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    u = np.asarray(velocities_mps, dtype=np.float64).reshape(-1, 2)
+    near = np.hypot(p[:, 0], p[:, 1]) <= params.range_m
+    p, u = p[near], u[near]
+    if len(p) == 0:
+        return math.inf
+    t = np.arange(0.0, params.static_horizon_s + 1e-9, params.step_s)
+    robot = _arc(v_mps, omega_radps, t)
+    d2 = (p[:, None, 0] + u[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
+        p[:, None, 1] + u[:, None, 1] * t[None, :] - robot[None, :, 1]
+    ) ** 2
+    return float(math.sqrt(d2.min()))

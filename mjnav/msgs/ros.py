@@ -60,10 +60,22 @@ def _diagonal9(variance: float) -> Any:
     return np.diag([variance] * 3).reshape(9)
 
 
+#: Largest stamp a builtin_interfaces/Time holds (``sec`` is an int32), seconds.
+MAX_STAMP_S = float(2**31 - 1)
+
+
+class StampOutOfRange(ValueError):
+    """A time that a ROS 2 stamp cannot hold: NaN, negative, or beyond ``sec``'s int32 range."""
+
+
 def time_msg(t_s: float) -> Any:
-    """builtin_interfaces/Time for ``t_s`` seconds (non-negative, rounded to the nanosecond)."""
-    if not (math.isfinite(t_s) and t_s >= 0.0):
-        raise ValueError(f"a stamp needs a finite, non-negative time, got {t_s}")
+    """builtin_interfaces/Time for ``t_s`` seconds (0 <= t_s < 2³¹, rounded to the nanosecond).
+
+    Raises:
+        StampOutOfRange: ``t_s`` is NaN, negative or too large for the message's int32 seconds.
+    """
+    if not (math.isfinite(t_s) and 0.0 <= t_s < MAX_STAMP_S):
+        raise StampOutOfRange(f"a stamp needs a time in [0, 2^31 - 1) s, got {t_s}")
     ns = round(t_s * _NS_PER_S)
     return _Time(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
 

@@ -2,7 +2,9 @@
 
 The router listens on ``tcp/127.0.0.1:<port>``; each service runs as ``python -m mjnav run <name>`` connected to
 it, with its output prefixed ``[name]``. A service that exits on its own is restarted (bounded by its
-``restarts`` in the stack file, with exponential back-off). On SIGINT/SIGTERM, or after ``duration_s``, the
+``restarts`` in the stack file, with exponential back-off); so is a hung one — a running process whose status
+heartbeat (``<ns>/status/<name>``, every wall second) stopped for ``hung_timeout_s``, or whose liveliness token
+vanished — which is killed first. On SIGINT/SIGTERM, or after ``duration_s``, the
 services are stopped in reverse start order (SIGTERM, then SIGKILL after a grace period) and the launcher
 returns 0; a second signal kills everything at once.
 """
@@ -13,17 +15,22 @@ import ctypes
 import json
 import logging
 import os
+import shutil
 import signal
+import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from types import FrameType
-from typing import IO
+from typing import IO, Any
 
-from mjnav.bus import Bus, BusConfig
+from mjnav.bus import Bus, BusConfig, BusUnavailable
+from mjnav.runtime.config import ConfigError, parse_override
+from mjnav.runtime.service import STATE_DIR_ENV
 from mjnav.runtime.stack import ServiceSpec, Stack
 
 log = logging.getLogger("mjnav.up")
@@ -32,6 +39,8 @@ log = logging.getLogger("mjnav.up")
 STOP_GRACE_S = 5.0
 #: First restart delay; doubles with every restart of the same service.
 RESTART_BACKOFF_S = 0.5
+#: Default wall seconds without a status heartbeat (sent every second) after which a running service counts as hung.
+HUNG_TIMEOUT_S = 5.0
 
 
 #: prctl option: the signal a process gets when its parent dies (linux/prctl.h).
@@ -61,6 +70,8 @@ class _Child:
     restart_at: float | None = None
     gave_up: bool = False
     pumps: list[threading.Thread] = field(default_factory=list)
+    last_status: float | None = None  # wall time of the newest status heartbeat from the current process
+    alive: bool = False  # the current process's liveliness token is up
 
 
 class Launcher:
@@ -79,6 +90,8 @@ class Launcher:
         extra_participants: lockstep participants besides the services (e.g. ``mjnav demo``'s mission client);
             sim time starts once all of them are present.
         seed: seed every service that has a ``seed`` setting (the sim's noise, the planner's randomness).
+        hung_timeout_s: wall seconds without a status heartbeat from a running service (once it sent one) after
+            which it is killed and restarted.
     """
 
     def __init__(
@@ -95,7 +108,11 @@ class Launcher:
         lockstep: bool = True,
         extra_participants: Sequence[str] = (),
         seed: int | None = None,
+        hung_timeout_s: float = HUNG_TIMEOUT_S,
     ) -> None:
+        if not hung_timeout_s > 0:
+            raise ValueError(f"hung_timeout_s must be > 0, got {hung_timeout_s}")
+        self.hung_timeout_s = hung_timeout_s
         self.stack = stack
         self.specs = stack.select(list(only) if only else None)
         self.namespace = namespace or stack.namespace
@@ -110,6 +127,8 @@ class Launcher:
         self._out_lock = threading.Lock()
         self._signals = 0
         self._alive: set[str] = set()
+        self._lock = threading.Lock()  # child heartbeat fields, written from Zenoh callbacks
+        self.state_dir: str | None = None  # this run's checkpoints (see Service.state_dir), while running
 
     def _add_run_settings(self, lockstep: bool, extra_participants: Sequence[str], seed: int | None) -> None:
         """Lockstep and seed settings, put before the caller's overrides so that an explicit ``--set`` wins."""
@@ -122,6 +141,34 @@ class Launcher:
                 participants = [n for n, c in classes.items() if c.uses_sim_time] + list(extra_participants)
                 settings += [f"lockstep={json.dumps(lockstep)}", f"lockstep_participants={json.dumps(participants)}"]
             self.overrides[name] = settings + self.overrides.get(name, [])
+
+    def check(self) -> None:
+        """Validate everything before anything starts: every service's config file with its overrides (unknown
+        keys, wrong types, bad values such as an unknown world), and the router port.
+
+        Raises:
+            ConfigError: one line naming the service, file or setting, or the taken port.
+        """
+        for spec in self.specs:
+            overrides = dict(parse_override(item) for item in self.overrides.get(spec.name, []))
+            known = {f.name for f in fields(spec.load_class().config_class)}
+            for key in overrides:
+                if key not in known:
+                    raise ConfigError(
+                        f"--set {spec.name}.{key}: {spec.name} has no setting {key!r}; valid: {sorted(known)}"
+                    )
+            try:
+                spec.load_config(overrides)
+            except ConfigError as exc:
+                raise ConfigError(f"{spec.name}: {exc}") from exc
+        if not 0 < self.port < 65536:
+            raise ConfigError(f"--port must be 1..65535, got {self.port}")
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                probe.bind(("127.0.0.1", self.port))
+            except OSError as exc:
+                raise ConfigError(f"port {self.port} in use ({exc.strerror}), use --port") from exc
 
     @property
     def endpoint(self) -> str:
@@ -155,6 +202,8 @@ class Launcher:
     def _env(self) -> dict[str, str]:
         env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}
         env["PYTHONUNBUFFERED"] = "1"
+        if self.state_dir is not None:
+            env[STATE_DIR_ENV] = self.state_dir
         env.update(self.extra_env)
         return env
 
@@ -170,7 +219,10 @@ class Launcher:
             start_new_session=True,  # Ctrl-C reaches the launcher only; it stops the services in order
             preexec_fn=_die_with_parent(os.getpid()),
         )
-        child.proc = proc
+        with self._lock:
+            child.proc = proc
+            child.last_status = None
+            child.alive = False
         pump = threading.Thread(target=self._pump, args=(child.spec.name, proc), daemon=True)
         pump.start()
         child.pumps.append(pump)
@@ -208,7 +260,10 @@ class Launcher:
                 child.restart_at = None
                 self._start(child)
             return
-        if proc is None or child.gave_up or proc.poll() is None:
+        if proc is None or child.gave_up:
+            return
+        if proc.poll() is None:
+            self._check_hung(child, proc, now)
             return
         code = proc.returncode
         if child.restarts >= child.spec.restarts:
@@ -232,18 +287,51 @@ class Launcher:
         )
         child.restart_at = now + delay
 
-    def _on_alive(self, service: str, alive: bool) -> None:
-        if alive:
-            self._alive.add(service)
-            if all(c.spec.name in self._alive for c in self.children):
-                log.info(
-                    "all %d service(s) alive on %s: %s",
-                    len(self.children),
-                    self.endpoint,
-                    ", ".join(c.spec.name for c in self.children),
-                )
+    def _check_hung(self, child: _Child, proc: subprocess.Popen[str], now: float) -> None:
+        """Kill a running service that stopped answering (the next :meth:`_supervise` restarts it): its status
+        heartbeat is older than :attr:`hung_timeout_s`, or its liveliness token went away. A process that has not
+        sent its first status yet is starting (imports, compilation) and is left alone."""
+        with self._lock:
+            last = child.last_status
+            token_lost = child.alive and child.spec.name not in self._alive
+        if last is None:
+            return
+        if token_lost:
+            reason = "its liveliness token vanished"
+        elif now - last > self.hung_timeout_s:
+            reason = f"no status for {now - last:.1f} s"
         else:
-            self._alive.discard(service)
+            return
+        log.warning("%s (pid %d) is hung: %s; killing it", child.spec.name, proc.pid, reason)
+        with self._lock:
+            child.last_status = None
+            child.alive = False
+        proc.kill()
+
+    def _on_status(self, msg: Any) -> None:
+        now = time.monotonic()
+        with self._lock:
+            for child in self.children:
+                if child.spec.name == msg.service and child.proc is not None and child.proc.pid == int(msg.pid):
+                    child.last_status = now
+
+    def _on_alive(self, service: str, alive: bool) -> None:
+        with self._lock:
+            if alive:
+                self._alive.add(service)
+                for child in self.children:
+                    if child.spec.name == service:
+                        child.alive = True
+            else:
+                self._alive.discard(service)
+            everyone = alive and all(c.spec.name in self._alive for c in self.children)
+        if everyone:
+            log.info(
+                "all %d service(s) alive on %s: %s",
+                len(self.children),
+                self.endpoint,
+                ", ".join(c.spec.name for c in self.children),
+            )
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         self._signals += 1
@@ -259,16 +347,23 @@ class Launcher:
     def run(self, *, install_signals: bool = True) -> int:
         """Start the router and the services, supervise until stopped; returns the exit code.
 
-        0 after a requested stop (signal or duration) when no service had to be given up, 1 otherwise.
+        0 after a requested stop (signal or duration) when no service had to be given up, 1 otherwise; 2 when
+        the router cannot listen on the port.
         """
         if install_signals:
             signal.signal(signal.SIGINT, self._on_signal)
             signal.signal(signal.SIGTERM, self._on_signal)
-        router = Bus.open(BusConfig(mode="router", connect=(), listen=(self.endpoint,)), self.namespace)
+        try:
+            router = Bus.open(BusConfig(mode="router", connect=(), listen=(self.endpoint,)), self.namespace)
+        except BusUnavailable as exc:
+            log.error("cannot start the router: %s (port %d in use? use --port)", exc, self.port)
+            return 2
         log.info("zenoh router on %s; namespace %s", self.endpoint, self.namespace)
+        self.state_dir = tempfile.mkdtemp(prefix="mjnav-state-")
         deadline = None if self.duration_s is None else time.monotonic() + self.duration_s
         try:
             router.watch_alive(self._on_alive)
+            router.subscribe("status", service="*", callback=self._on_status, immediate=True)
             for child in self.children:
                 self._start(child)
             while not self.stop_event.is_set():
@@ -282,6 +377,8 @@ class Launcher:
             for child in reversed(self.children):
                 self._stop_child(child)
             router.close()
+            shutil.rmtree(self.state_dir, ignore_errors=True)
+            self.state_dir = None
         failed = [c.spec.name for c in self.children if c.gave_up]
         if failed:
             log.error("service(s) given up after repeated crashes: %s", ", ".join(failed))

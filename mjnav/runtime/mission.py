@@ -19,6 +19,7 @@ from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
 from mjnav.jsonsafe import json_safe
 from mjnav.msgs import msg_class, ros
+from mjnav.runtime.runner import MAX_CLOCK_JUMP_S
 
 _STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
 _FINAL = {_STATUS.STATE_REACHED: "reached", _STATUS.STATE_FAILED: "failed", _STATUS.STATE_CANCELED: "canceled"}
@@ -93,6 +94,7 @@ class MissionClient:
         self._track = _Track()
         self._job: _Job | None = None
         self._now = math.nan
+        self.rejected_clocks = 0  # clock messages dropped as too far ahead (forged)
         self._next_tick = math.nan
         #: True pose when the last :meth:`run_goals` ended (None before).
         self.final_pose: Pose2D | None = None
@@ -134,6 +136,10 @@ class MissionClient:
 
     def _on_clock(self, msg: Any) -> None:
         t = ros.seconds(msg.clock)
+        with self._lock:
+            if t > self._now + MAX_CLOCK_JUMP_S:  # forged or corrupt: the services drop it too
+                self.rejected_clocks += 1
+                return
         self.bus.commit()  # what arrived before this clock: measurements and statuses up to t
         with self._lock:
             if not t >= self._now:  # the first clock, or the sim restarted

@@ -27,6 +27,7 @@ from mjnav.runtime.service import Service
 
 #: Wall seconds between status messages.
 STATUS_PERIOD_S = 1.0
+log = logging.getLogger("mjnav.runtime")
 #: How long blocking waits sleep at most before re-checking for a stop request.
 _POLL_S = 0.1
 #: Tolerance on tick times, so that accumulated float error never defers a step to the next clock message.
@@ -67,9 +68,15 @@ class ClockJumpedBack(Exception):
     """The sim clock went backwards (the simulator restarted); pending waits are abandoned."""
 
 
+#: Largest forward step of sim time between two clock messages that is believed (sim s); a clock further ahead is
+#: dropped as forged or corrupt (the sim ticks 0.05 s apart; a restarted sim goes back, never far forward).
+MAX_CLOCK_JUMP_S = 5.0
+
+
 class _SimClock:
     """Sim time from the ``clock`` topic; a wait is woken by the clock message that reaches its time (or goes back),
-    not by every tick.
+    not by every tick. A clock more than :data:`MAX_CLOCK_JUMP_S` ahead of the current time is dropped and
+    counted (``rejected_jumps``): one forged message must not fast-forward the service out of the run.
 
     The bus is switched to staged delivery: every other message becomes visible to the service when the next clock
     message arrives (:meth:`~mjnav.bus.Bus.commit`), so a step at sim time t sees what was published before the
@@ -81,12 +88,22 @@ class _SimClock:
         self._now = math.nan
         self._waiting_for = -math.inf  # the time a wait is blocked on (-inf: wake on any clock)
         self.jumps_back = 0
+        self.rejected_jumps = 0
         self._bus = bus
         bus.staged = True
         self._sub = bus.subscribe("clock", callback=self._on_clock, immediate=True)
 
     def _on_clock(self, msg: Any) -> None:
         t = ros.seconds(msg.clock)
+        with self._cond:
+            if t > self._now + MAX_CLOCK_JUMP_S:  # False while no clock arrived yet (NaN)
+                self.rejected_jumps += 1
+                if self.rejected_jumps <= 10 or self.rejected_jumps % 1000 == 0:
+                    log.warning(
+                        "clock jump from %.3f s to %.3f s on %s dropped (%d so far): more than %.0f s ahead",
+                        self._now, t, self._bus.key("clock"), self.rejected_jumps, MAX_CLOCK_JUMP_S,
+                    )  # fmt: skip
+                return
         self._bus.commit()
         with self._cond:
             back = t < self._now
@@ -187,7 +204,7 @@ class ServiceRunner:
         s = self.stats
         span = now - s.period_start if math.isfinite(now) and math.isfinite(s.period_start) else 0.0
         loop_rate = s.period_steps / span if span > 0 else 0.0
-        stamp = now if math.isfinite(now) and now >= 0 else 0.0
+        stamp = now if math.isfinite(now) and 0 <= now < ros.MAX_STAMP_S else 0.0
         return msg_class("mjnav_msgs/msg/ServiceStatus")(
             header=ros.header(stamp, ""),
             service=self.name,

@@ -9,11 +9,16 @@ owns no threads, signals, sessions or timers: the runtime (:mod:`mjnav.runtime.r
 from __future__ import annotations
 
 import logging
+import os
+from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
 from mjnav.bus import Bus
 
 ConfigT = TypeVar("ConfigT")
+
+#: Environment variable naming the run's state directory (set by ``mjnav up`` for its services).
+STATE_DIR_ENV = "MJNAV_STATE_DIR"
 
 
 class Service(Generic[ConfigT]):
@@ -27,6 +32,9 @@ class Service(Generic[ConfigT]):
         name: the service name (key of its status topic and liveliness token).
         config_class: the frozen dataclass its TOML config is validated into; must have ``rate_hz``.
         uses_sim_time: step on the ``clock`` topic (True) or on wall time (False, e.g. the simulator itself).
+        state_dir: a directory that outlives the process for the whole run (``$MJNAV_STATE_DIR``; ``mjnav up``
+            makes one per run and removes it at the end): checkpoints a restarted service resumes from (the
+            mapper's map, the planner's goal). None when the service runs on its own.
     """
 
     name: ClassVar[str] = ""
@@ -37,6 +45,8 @@ class Service(Generic[ConfigT]):
         self.config = config
         self.bus = bus
         self.log = log
+        state = os.environ.get(STATE_DIR_ENV, "")
+        self.state_dir = Path(state) if state else None
 
     def configure(self) -> None:
         """Declare publishers/subscriptions and load resources (maps, models)."""

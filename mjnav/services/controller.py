@@ -5,8 +5,13 @@ approach and stops at the goal, reporting ``reached`` on ``goal_status``. Every 
 collision check against the robot's own scan (:func:`mjnav.control.collision.safe_command`): the commanded arc is
 rolled forward against the scan's points — moving ones at the velocities two consecutive scans give — and a command
 that would collide is replaced by a slower, stopped or (to clear a crossing obstacle) faster one on the same
-curvature. It stops (and keeps publishing zero) when there is no path, the goal failed or was canceled, the pose is
-stale, or the robot is further than ``lost_distance_m`` from the path (the planner's next replan gives a new one).
+curvature. It stops (and keeps publishing zero) when there is no path, the goal failed or was canceled, the pose or
+the scan is stale, or the robot is further than ``lost_distance_m`` from the path (the planner's next replan gives a
+new one).
+
+Every goal ends: besides ``reached``, the controller fails the active goal with ``ERROR_TIMEOUT`` when the robot has
+not moved ``progress_radius_m`` in ``progress_timeout_s`` (Nav2's progress checker), or when the planner's
+``following`` heartbeat has been silent for ``planner_timeout_s`` (the planner died for good).
 """
 
 from __future__ import annotations
@@ -59,6 +64,11 @@ class ControllerConfig:
         collision_static_horizon_s: how far ahead (seconds of the commanded arc) static scan points are checked.
         collision_moving_horizon_s: how far ahead moving scan points are checked.
         moving_speed_mps: scan points moving faster than this between two scans count as moving.
+        scan_timeout_s: stop when the newest scan is older than this (sim s): the collision check needs one.
+        progress_timeout_s, progress_radius_m: fail the goal (``ERROR_TIMEOUT``) when the robot stayed within
+            ``progress_radius_m`` for ``progress_timeout_s`` sim seconds while the goal was active.
+        planner_timeout_s: fail the goal (``ERROR_TIMEOUT``) when the planner's ``following`` heartbeat (every
+            second) has been silent this long, sim seconds.
     """
 
     rate_hz: float = 20.0
@@ -79,6 +89,10 @@ class ControllerConfig:
     collision_static_horizon_s: float = 0.3
     collision_moving_horizon_s: float = 4.0
     moving_speed_mps: float = 0.25
+    scan_timeout_s: float = 0.5
+    progress_timeout_s: float = 20.0
+    progress_radius_m: float = 0.25
+    planner_timeout_s: float = 15.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -88,6 +102,10 @@ class ControllerConfig:
             "path_timeout_s",
             "lost_distance_m",
             "front_sector_rad",
+            "scan_timeout_s",
+            "progress_timeout_s",
+            "progress_radius_m",
+            "planner_timeout_s",
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -159,6 +177,8 @@ class ControllerService(Service[ControllerConfig]):
         # Also called again when the sim clock restarts: the goal is re-adopted from the planner's heartbeat.
         self.goal: Any = None  # the GoalStatus that made the current goal active
         self.goal_since = math.inf  # its sim time: older paths belong to earlier goals
+        self.heartbeat = -math.inf  # sim time of the planner's newest "following" for the goal
+        self.progress: tuple[float, float, float] | None = None  # (x, y, sim time) the robot last moved away from
         self.path_msg: Any = None  # newest nav_msgs/Path received
         self.path_received = -math.inf  # sim time it arrived
         self.path_points: Any = None
@@ -213,10 +233,10 @@ class ControllerService(Service[ControllerConfig]):
         frame, walls = self.walls
         return frame.values_at(walls, points, outside=False)
 
-    def _checked(self, pose: Pose2D, v: float, w: float) -> tuple[float, float]:
-        """(v, ω) after the collision check against the newest scan (unchanged without one)."""
-        if self.obstacles is None:
-            return v, w
+    def _checked(self, now: float, pose: Pose2D, v: float, w: float) -> tuple[float, float]:
+        """(v, ω) after the collision check against the newest scan ((0, 0) without a recent one)."""
+        if self.obstacles is None or now - self.obstacles.stamp > self.config.scan_timeout_s:
+            return 0.0, 0.0  # no recent scan: nothing to check the command against
         points, velocities = self.obstacles.points, self.obstacles.velocities
         local = pose.inverse().transform_points(points)
         c, s = math.cos(pose.theta), math.sin(pose.theta)
@@ -246,7 +266,9 @@ class ControllerService(Service[ControllerConfig]):
                 if self.goal is None or status.goal_id != self.goal.goal_id:
                     self.goal = status
                     self.goal_since = ros.seconds(status.header.stamp)
+                    self.progress = None
                     self.pursuit.reset()
+                self.heartbeat = ros.seconds(status.header.stamp)
             elif status.state in (cls.STATE_FAILED, cls.STATE_CANCELED, cls.STATE_REACHED):
                 self.finished.add(status.goal_id)
                 if self.goal is not None and status.goal_id == self.goal.goal_id:
@@ -270,6 +292,8 @@ class ControllerService(Service[ControllerConfig]):
         path = self._current_path(now)
         if self.goal is None:
             self._stop("no active goal")
+            return
+        if self._goal_expired(now):
             return
         if path is None or len(path) < 2:
             self._stop("no path")
@@ -296,10 +320,50 @@ class ControllerService(Service[ControllerConfig]):
         if abs(status.cross_track_m) > self.config.lost_distance_m:
             self._stop(f"{abs(status.cross_track_m):.2f} m off the path: waiting for a new plan")
             return
-        v, w = self._checked(pose, v, w)
+        v, w = self._checked(now, pose, v, w)
         self.stopped_reason = ""
         self.speed = v
         self.cmd_pub.put(ros.twist(v, w))
+
+    def _goal_expired(self, now: float) -> bool:
+        """Fail the active goal when the planner went silent or the robot stopped making progress."""
+        cfg = self.config
+        if now - self.heartbeat > cfg.planner_timeout_s:
+            self._fail(now, f"no word from the planner for {now - self.heartbeat:.1f} s")
+            return True
+        pose_msg = self.pose_sub.latest()
+        if pose_msg is None:
+            return False
+        pose = ros.pose2d(pose_msg.pose.pose if cfg.pose_source == "odom" else pose_msg.pose)
+        if self.progress is None or math.hypot(pose.x - self.progress[0], pose.y - self.progress[1]) > (
+            cfg.progress_radius_m
+        ):
+            self.progress = (pose.x, pose.y, now)
+            return False
+        if now - self.progress[2] > cfg.progress_timeout_s:
+            self._fail(now, f"no progress: moved less than {cfg.progress_radius_m} m in {cfg.progress_timeout_s} s")
+            return True
+        return False
+
+    def _fail(self, now: float, text: str) -> None:
+        goal = self.goal
+        self._stop(text)
+        self._end_goal(now, goal, self.status_cls.STATE_FAILED, self.status_cls.ERROR_TIMEOUT, text)
+        self.log.warning("goal %d failed: %s", goal.goal_id, text)
+
+    def _end_goal(self, now: float, goal: Any, state: int, error: int, text: str) -> None:
+        self.goal = None
+        self.finished.add(goal.goal_id)
+        self.status_pub.put(
+            self.status_cls(
+                header=ros.header(now, "map"),
+                goal_id=goal.goal_id,
+                state=state,
+                error_code=error,
+                error_text=text,
+                goal=goal.goal,
+            )
+        )
 
     def _obstacle_distance(self) -> float:
         scan = self.scan_sub.latest()
@@ -316,17 +380,5 @@ class ControllerService(Service[ControllerConfig]):
 
     def _report_reached(self, now: float) -> None:
         goal = self.goal
-        self.goal = None
-        self.finished.add(goal.goal_id)
-        cls = self.status_cls
-        self.status_pub.put(
-            cls(
-                header=ros.header(now, "map"),
-                goal_id=goal.goal_id,
-                state=cls.STATE_REACHED,
-                error_code=cls.ERROR_NONE,
-                error_text="",
-                goal=goal.goal,
-            )
-        )
+        self._end_goal(now, goal, self.status_cls.STATE_REACHED, self.status_cls.ERROR_NONE, "")
         self.log.info("goal %d reached", goal.goal_id)

@@ -9,6 +9,7 @@ inflation, 0–100, −1 unknown) go out at ``publish_rate_hz`` of sim time. The
 from __future__ import annotations
 
 import json
+import os
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +39,9 @@ class MapperConfig:
         cost_scaling_factor: exponential decay rate of the cost, 1/m.
         prior_map: ROS map YAML to start from ("" = unknown everywhere; its grid replaces width/height/origin).
         save_path: ROS map YAML written on exit ("" = don't).
+        maps_dir: the only directory the ``save_map`` request may write to; its path is taken relative to it.
+        checkpoint_period_s: how often (sim s) the map is checkpointed to the run's state directory, from which a
+            restarted mapper resumes (``mjnav up`` gives one per run; 0 = never).
     """
 
     rate_hz: float = 20.0
@@ -54,6 +58,8 @@ class MapperConfig:
     cost_scaling_factor: float = 5.0
     prior_map: str = ""
     save_path: str = ""
+    maps_dir: str = "maps"
+    checkpoint_period_s: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("publish_rate_hz", "width_m", "height_m", "resolution_m", "max_range_m"):
@@ -61,6 +67,10 @@ class MapperConfig:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if not 0 <= self.robot_radius_m <= self.inflation_radius_m:
             raise ValueError("need 0 <= robot_radius_m <= inflation_radius_m")
+        if not self.checkpoint_period_s >= 0:
+            raise ValueError(f"checkpoint_period_s must be >= 0, got {self.checkpoint_period_s}")
+        if not self.maps_dir:
+            raise ValueError("maps_dir must not be empty")
 
 
 class MapperService(Service[MapperConfig]):
@@ -84,6 +94,7 @@ class MapperService(Service[MapperConfig]):
                 cfg.resolution_m,
                 origin_m=cfg.origin_m,
             )
+        self._restore_checkpoint()
         # Pose callbacks run in Zenoh threads: they only append here; step() moves them into the history.
         self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
         self.scan = self.bus.subscribe("scan")
@@ -97,6 +108,8 @@ class MapperService(Service[MapperConfig]):
         self.laser = Pose2D(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0)
         self.scans = 0
         self.skipped = 0
+        self.checkpointed_scans = 0
+        self.next_checkpoint = 0.0
         # Load the compiled scan integration now, on a scratch grid.
         OccupancyGrid(8, 8, 0.1).integrate_scan((0.4, 0.4, 0.0), np.zeros(1), np.ones(1), 1.0)
 
@@ -120,6 +133,50 @@ class MapperService(Service[MapperConfig]):
         if now >= self.next_publish:
             self.next_publish = now + 1.0 / self.config.publish_rate_hz
             self._publish(now)
+        if self.config.checkpoint_period_s > 0 and now >= self.next_checkpoint:
+            self.next_checkpoint = now + self.config.checkpoint_period_s
+            if self.scans != self.checkpointed_scans:
+                self._checkpoint()
+
+    # ------------------------------------------------------------------------------------------- checkpoints
+
+    def _checkpoint_file(self) -> Path | None:
+        return None if self.state_dir is None else self.state_dir / "mapper-map.npz"
+
+    def _checkpoint(self) -> None:
+        """Write the log-odds grid to the state directory (atomically: a crash mid-write keeps the last one)."""
+        path = self._checkpoint_file()
+        if path is None:
+            return
+        tmp = path.with_suffix(".tmp.npz")
+        g = self.grid
+        np.savez(tmp, log_odds=g.log_odds, resolution_m=g.resolution_m, origin_m=np.asarray(g.origin_m))
+        os.replace(tmp, path)
+        self.checkpointed_scans = self.scans
+
+    def _restore_checkpoint(self) -> None:
+        """Resume from the run's checkpoint, if a previous mapper process of this run left one for this grid."""
+        path = self._checkpoint_file()
+        if path is None or not path.exists():
+            return
+        g = self.grid
+        try:
+            with np.load(path) as data:
+                log_odds = np.asarray(data["log_odds"], dtype=np.float64)
+                same = (
+                    log_odds.shape == g.log_odds.shape
+                    and float(data["resolution_m"]) == g.resolution_m
+                    and tuple(np.asarray(data["origin_m"]).tolist()) == tuple(g.origin_m)
+                )
+        except (OSError, ValueError, KeyError) as exc:
+            self.log.warning("map checkpoint %s unreadable (%s): starting from scratch", path, exc)
+            return
+        if not same:
+            self.log.warning("map checkpoint %s is for another grid: starting from scratch", path)
+            return
+        g.log_odds[...] = log_odds
+        known = int(np.count_nonzero(log_odds))
+        self.log.info("resumed the map from checkpoint %s (%d known cells)", path, known)
 
     def _integrate(self, scan: Any) -> None:
         stamp = ros.seconds(scan.header.stamp)
@@ -161,8 +218,17 @@ class MapperService(Service[MapperConfig]):
         return write_ros_map(yaml_path, self.grid.states(), self.grid.resolution_m, origin)
 
     def _on_save(self, request: Any) -> Any:
-        target = request.data or self.config.save_path
-        if not target:
+        """``save_map``: write the map to a path inside ``maps_dir`` (given relative to it; default: the
+        configured ``save_path``). Anything that would land outside ``maps_dir`` is refused."""
+        if request.data:
+            root = Path(self.config.maps_dir).resolve()
+            target = (root / request.data).resolve()
+            if Path(request.data).is_absolute() or not target.is_relative_to(root):
+                raise ValueError(f"save_map writes only inside maps_dir {root}: {request.data!r} is outside it")
+            target.parent.mkdir(parents=True, exist_ok=True)
+        elif self.config.save_path:
+            target = Path(self.config.save_path)
+        else:
             raise ValueError("no path given and no save_path configured")
         written = self.save(target)
         self.log.info("map saved to %s", written)

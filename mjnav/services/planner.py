@@ -4,20 +4,27 @@ A goal (``geometry_msgs/PoseStamped`` in ``map``) is accepted, planned with the 
 pose, and published as ``plan`` (``nav_msgs/Path``, cell centres). ``goal_status`` reports accepted → planning →
 following, or failed with a typed reason (start/goal occupied, outside the map, no path). While a goal is active
 the planner replans when a new costmap blocks the current path, and periodically when a cheaper route appeared;
-the goal fails when it becomes unreachable or occupied. The controller reports ``reached``; ``cancel`` ends a goal.
-Unknown space is traversable at an extra cost (see :mod:`mjnav.planning.costmap`).
+the goal fails when it becomes unreachable or occupied. The controller reports ``reached`` (or fails the goal when
+the robot makes no progress); ``cancel`` ends a goal. Unknown space is traversable at an extra cost (see
+:mod:`mjnav.planning.costmap`). A costmap older than ``costmap_timeout_s`` is not planned on: the plan is withdrawn
+(the robot stops) until a fresh one arrives.
+
+The active goal and the next goal id are checkpointed in the run's state directory, so a planner restarted mid-goal
+(``mjnav up`` restarts crashed and hung services) resumes the same goal under the same id.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import os
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
 from mjnav.geometry import Pose2D
-from mjnav.msgs import msg_class, ros
+from mjnav.msgs import decode, encode, msg_class, ros
 from mjnav.planning import (
     ALGORITHMS,
     GoalOccupied,
@@ -32,6 +39,7 @@ from mjnav.planning.costmap import clear_disc, planning_grid
 from mjnav.runtime import Service
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
+_GOAL = "geometry_msgs/msg/PoseStamped"
 
 
 @dataclass(frozen=True)
@@ -51,6 +59,8 @@ class PlannerConfig:
         heartbeat_period_s: how often (sim s) the current plan and the ``following`` status are re-sent, so a
             restarted smoother or controller picks the goal up again.
         improvement: switch to a new route only when it is cheaper than this fraction of the remaining one.
+        costmap_timeout_s: a costmap stamped longer ago than this (sim s) is stale: not planned on, and the plan is
+            withdrawn until a fresh one arrives (the mapper publishes at 2 Hz).
         seed: seed of the potential field's random escapes.
     """
 
@@ -66,6 +76,7 @@ class PlannerConfig:
     replan_period_s: float = 2.0
     heartbeat_period_s: float = 1.0
     improvement: float = 0.9
+    costmap_timeout_s: float = 3.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -75,6 +86,8 @@ class PlannerConfig:
             raise ValueError(f"connectivity must be 4 or 8, got {self.connectivity}")
         if not 0 < self.improvement <= 1:
             raise ValueError(f"improvement must be in (0, 1], got {self.improvement}")
+        if not self.costmap_timeout_s > 0:
+            raise ValueError(f"costmap_timeout_s must be > 0, got {self.costmap_timeout_s}")
 
 
 _ERRORS: list[tuple[type[PlanningError], str]] = [
@@ -96,6 +109,7 @@ class _Goal:
     last_sent_t: float = -math.inf
     following: bool = False
     path_msg: Any = None
+    withdrawn: bool = False  # the plan was withdrawn (stale costmap) and must be sent again
 
 
 class PlannerService(Service[PlannerConfig]):
@@ -116,6 +130,7 @@ class PlannerService(Service[PlannerConfig]):
         self.rng = np.random.default_rng(self.config.seed)
         self.goal: _Goal | None = None
         self.next_id = 1
+        self._restore()
         # Load the compiled search kernels now, not when the first goal arrives.
         free = np.zeros((4, 4), dtype=bool)
         plan_grid(
@@ -159,18 +174,24 @@ class PlannerService(Service[PlannerConfig]):
         self._status(now, self.goal, state, error, text)
         self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
         self.goal = None
+        self._save()
 
     # ----------------------------------------------------------------------------------------------- loop
 
     def step(self, now: float) -> None:
+        cls = self.status_cls
         for status in self.status_in.drain():
+            # The controller ends goals too: reached, or failed for want of progress. (Our own terminal statuses
+            # come back here after the goal was dropped.)
             if (
                 self.goal is not None
                 and status.goal_id == self.goal.goal_id
-                and status.state == self.status_cls.STATE_REACHED
+                and status.state in (cls.STATE_REACHED, cls.STATE_FAILED, cls.STATE_CANCELED)
             ):
-                self.log.info("goal %d reached", self.goal.goal_id)
+                self.log.info("goal %d ended by the controller: state %d %s", status.goal_id, status.state,
+                              status.error_text)  # fmt: skip
                 self.goal = None
+                self._save()
                 self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
         if self.cancels.drain() and self.goal is not None:
             self._end(now, "CANCELED", text="canceled by request")
@@ -179,7 +200,12 @@ class PlannerService(Service[PlannerConfig]):
         if self.goal is not None:
             self._plan(now)
         goal = self.goal
-        if goal is not None and goal.following and now - goal.last_sent_t >= self.config.heartbeat_period_s:
+        if (
+            goal is not None
+            and goal.following
+            and not goal.withdrawn
+            and now - goal.last_sent_t >= self.config.heartbeat_period_s
+        ):
             self._send(now, goal)
 
     def _send(self, now: float, goal: _Goal) -> None:
@@ -193,6 +219,7 @@ class PlannerService(Service[PlannerConfig]):
         goal = _Goal(self.next_id, msg, ros.pose2d(msg.pose))
         self.next_id += 1
         self.goal = goal
+        self._save()
         self._status(now, goal, "ACCEPTED")
         if msg.header.frame_id not in ("", "map"):
             self._end(now, "FAILED", "ERROR_INVALID_GOAL", f"goal frame {msg.header.frame_id!r} is not 'map'")
@@ -208,6 +235,18 @@ class PlannerService(Service[PlannerConfig]):
         if costmap_msg is None or pose_msg is None:
             return  # planning starts with the first costmap and pose
         stamp = ros.seconds(costmap_msg.header.stamp)
+        if now - stamp > self.config.costmap_timeout_s:
+            if not goal.withdrawn:
+                self.log.warning(
+                    "goal %d: the costmap is %.1f s old (limit %.1f s): plan withdrawn until a fresh one arrives",
+                    goal.goal_id, now - stamp, self.config.costmap_timeout_s,
+                )  # fmt: skip
+                self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
+                goal.withdrawn = True
+            return
+        if goal.withdrawn:
+            goal.withdrawn = False
+            goal.cells = None  # plan afresh on the fresh costmap
         fresh = stamp != self.grid_stamp
         if goal.cells is not None and not fresh:
             return
@@ -263,6 +302,43 @@ class PlannerService(Service[PlannerConfig]):
             plan.cost,
             plan.expanded,
         )
+
+    # ----------------------------------------------------------------------------------------- checkpoint
+
+    def _state_file(self) -> Any:
+        return None if self.state_dir is None else self.state_dir / "planner-goal.json"
+
+    def _save(self) -> None:
+        """Checkpoint the next goal id and the active goal (atomically)."""
+        path = self._state_file()
+        if path is None:
+            return
+        state: dict[str, Any] = {"next_id": self.next_id, "goal": None}
+        if self.goal is not None:
+            state["goal"] = {"goal_id": self.goal.goal_id, "cdr": encode(self.goal.msg, _GOAL).hex()}
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(state), encoding="utf-8")
+        os.replace(tmp, path)
+
+    def _restore(self) -> None:
+        """Resume from the checkpoint a previous planner process of this run left, if any."""
+        path = self._state_file()
+        if path is None or not path.exists():
+            return
+        try:
+            state = json.loads(path.read_text(encoding="utf-8"))
+            self.next_id = int(state["next_id"])
+            saved = state["goal"]
+            if saved is not None:
+                msg = decode(bytes.fromhex(saved["cdr"]), _GOAL)
+                self.goal = _Goal(int(saved["goal_id"]), msg, ros.pose2d(msg.pose))
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            self.log.warning("goal checkpoint %s unreadable (%s): starting without a goal", path, exc)
+            return
+        if self.goal is not None:
+            self.log.info(
+                "resuming goal %d (%.2f, %.2f) after a restart", self.goal.goal_id, self.goal.pose.x, self.goal.pose.y
+            )
 
     @staticmethod
     def _remaining(cells: Any, start: tuple[int, int]) -> Any:

@@ -99,6 +99,13 @@ class SimConfig:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.record_camera not in ("top", "follow"):
             raise ValueError(f"record_camera must be 'top' or 'follow', got {self.record_camera!r}")
+        from mjnav.sim.errors import UnknownWorldError
+        from mjnav.sim.worlds import resolve_world
+
+        try:
+            resolve_world(self.world)  # a wrong world fails here, before anything starts
+        except UnknownWorldError as exc:
+            raise ValueError(str(exc)) from exc
 
 
 class _Every:
@@ -279,6 +286,7 @@ class SimService(Service[SimConfig]):
         self._last_report = self._wall0
         self._pace: tuple[float, float] | None = None  # (wall, sim) reference of lockstep pacing
         self._time_started = False
+        self._missing: list[str] = []
 
     def step(self, now: float) -> None:
         if self.barrier is not None:
@@ -310,6 +318,16 @@ class SimService(Service[SimConfig]):
             barrier.published(0.0, tick)  # before the clock goes out: reports may come back at once
             self.runner.advance(0.0)  # publishes everything due at t = 0, the clock last
         rtf = self.config.rtf
+        missing = barrier.missing()
+        if missing:
+            rtf = min(rtf, 1.0) if rtf > 0 else 1.0  # degraded: real time until they are back (see lockstep.py)
+        if missing != self._missing:
+            if missing:
+                self.log.warning("lockstep: %s missing: sim time at most real time until back", ", ".join(missing))
+            else:
+                self.log.info("lockstep: every participant is back: real-time factor %s", self.config.rtf or "max")
+            self._missing = missing
+            self._pace = None
         deadline = time.monotonic() + 1.0 / self.config.rate_hz
         while True:
             t = self.sim.time_s

@@ -74,6 +74,23 @@ def test_safe_command_brakes_for_a_wall_and_lets_a_free_command_through() -> Non
     assert (v, w) == (0.0, 0.0) and math.isinf(ttc)
 
 
+def test_safe_command_never_drives_on_into_an_obstacle_it_is_already_too_close_to() -> None:
+    """The table-corner case: the robot grazes a corner ahead on its right, inside radius + margin, while turning
+    towards it. Every candidate 'collides' at once; only one that does not approach may go (here: none, stop)."""
+    from mjnav.control.collision import _closest_approach
+
+    corner = np.array([[0.1, -0.17], [0.15, -0.15], [0.2, -0.12], [0.05, -0.19]])  # ahead right, within 0.2 m
+    still = np.zeros_like(corner)
+    assert time_to_collision(0.25, -0.75, corner, still, P) == 0.0
+    assert _closest_approach(0.25, -0.75, corner, still, P) < _closest_approach(0.0, 0.0, corner, still, P)
+    v, w, ttc = safe_command(0.25, -0.75, corner, still, P)
+    assert (v, w, ttc) == (0.0, 0.0, 0.0)
+    # A wall close along the right side, behind the robot's centre: driving on, turning left, moves away: allowed.
+    side = np.array([[-0.05, -0.19], [-0.1, -0.2], [-0.15, -0.21], [0.0, -0.2]])
+    v, w, ttc = safe_command(0.25, 0.75, side, np.zeros_like(side), P)
+    assert (v, w, ttc) == (0.25, 0.75, 0.0)
+
+
 def test_safe_command_waits_for_a_crossing_obstacle_or_clears_its_way() -> None:
     # A cart's face 1 m wide (x from 0.5 to 1.5) at y = 1.5, coming down at 0.8 m/s across the robot's way.
     face = np.column_stack((np.linspace(0.5, 1.5, 21), np.full(21, 1.5)))

@@ -46,11 +46,13 @@ def test_router_serves_clients_and_health_reports_services() -> None:
         with Bus.open(BusConfig(mode="client", connect=(endpoint,))) as service:
             service.declare_alive("fake")
             status = service.publisher("status", service="fake")
-            active = from_dict("mjnav_msgs/msg/ServiceStatus", {"service": "fake", "state": 2})
 
             def publish_status() -> None:
+                steps = 0
                 while not stop.wait(0.1):  # a 10 Hz status source, like a running service (1 Hz)
-                    status.put(active)
+                    steps += 5  # a moving loop: health --status requires the step count to grow
+                    fields = {"service": "fake", "state": 2, "steps": steps}
+                    status.put(from_dict("mjnav_msgs/msg/ServiceStatus", fields))
 
             threading.Thread(target=publish_status, daemon=True).start()
             ok = _health("fake", "--status", "--connect", endpoint, "--mode", "client", "--timeout", "10")

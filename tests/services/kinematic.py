@@ -18,6 +18,7 @@ from mjnav.runtime import Service
 class KinematicConfig:
     rate_hz: float = 50.0
     max_speed_mps: float = 1.0
+    fail_in_configure: bool = False  # a valid setting that makes every start crash (the launcher's give-up test)
 
     def __post_init__(self) -> None:
         if not self.max_speed_mps > 0:
@@ -30,6 +31,8 @@ class KinematicRobot(Service[KinematicConfig]):
     uses_sim_time = False
 
     def configure(self) -> None:
+        if self.config.fail_in_configure:
+            raise RuntimeError("configured to fail")
         self.cmd = self.bus.subscribe("cmd_vel")
         self.odom = self.bus.publisher("odom")
         self.pose = Pose2D()

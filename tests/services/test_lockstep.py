@@ -52,7 +52,10 @@ def test_a_stalled_or_killed_participant_never_hangs_sim_time() -> None:
     the sim goes on at once; the launcher restarts it and it joins again."""
     sets = ("sim.world=empty", "sim.rtf=0", "sim.lockstep_timeout_s=1.0")
     with (
-        up_process("--only", "sim,smoother", *(x for item in sets for x in ("--set", item))) as (port, _, lines),
+        # --hung-timeout: the launcher must not replace the stopped smoother; this is the barrier's test.
+        up_process(
+            "--only", "sim,smoother", "--hung-timeout", "600", *(x for item in sets for x in ("--set", item))
+        ) as (port, _, lines),
         Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus,
     ):
         clock = bus.subscribe("clock")

@@ -3,16 +3,19 @@ smoother's clearance box, the controller's goal states. Each service runs on a r
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mjnav.bus import Bus
+from mjnav.bus import Bus, RemoteError
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
 from mjnav.services.controller import ControllerService
+from mjnav.services.mapper import MapperService
 from mjnav.services.planner import PlannerService
 from mjnav.services.smoother import SmootherService
 from tests.services.harness import Harness
@@ -33,6 +36,25 @@ def _free() -> np.ndarray:
 def _status(t: float, goal_id: int, state: int) -> object:
     goal = ros.pose_stamped(t, "map", Pose2D(0.0, 0.0, 0.0))
     return STATUS(header=ros.header(t, "map"), goal_id=goal_id, state=state, error_code=0, error_text="", goal=goal)
+
+
+def _clear_scan(t: float) -> object:
+    """A 360° scan with no return (open space all round)."""
+    n = 90
+    return ros.laser_scan(
+        t, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / n, scan_time_s=0.1,
+        range_min_m=0.05, range_max_m=12.0, ranges_m=np.full(n, np.inf),
+    )  # fmt: skip
+
+
+def _scanning(h: Harness) -> Callable[..., None]:
+    """``h.step`` with a fresh clear scan before each step (the controller does not move without one)."""
+
+    def step(t: float, expect: dict[str, int] | None = None) -> None:
+        h.send("scan", _clear_scan(t))
+        h.step(t, expect)
+
+    return step
 
 
 def _states(h: Harness) -> list[tuple[int, int, int]]:
@@ -177,53 +199,192 @@ def test_smoother_keeps_every_point_inside_its_clearance_box(peer: Peer) -> None
 
 def test_controller_goal_states(peer: Peer) -> None:
     h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), path_timeout_s=3.0, pose_timeout_s=0.5)
+    step = _scanning(h)
     line = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31)]
     # No goal: zero command.
     h.send("ground_truth", ros.pose_stamped(0.0, "map", Pose2D(0.0, 0.0, 0.0)))
-    h.step(0.0, {"cmd_vel": 1})
+    step(0.0, {"cmd_vel": 1})
     assert h.received["cmd_vel"][-1].linear.x == 0.0
     # Following goal 1 with its path: drives.
     h.send("goal_status", _status(1.0, 1, STATUS.STATE_FOLLOWING))
     h.send("path", ros.path_msg(1.0, "map", line))
     h.send("ground_truth", ros.pose_stamped(1.0, "map", Pose2D(0.0, 0.0, 0.0)))
-    h.step(1.0, {"cmd_vel": 2})
+    step(1.0, {"cmd_vel": 2})
     assert h.received["cmd_vel"][-1].linear.x > 0.0
     # A pose older than pose_timeout_s: stop.
-    h.step(1.6, {"cmd_vel": 3})
+    step(1.6, {"cmd_vel": 3})
     assert h.received["cmd_vel"][-1].linear.x == 0.0
     # A path older than path_timeout_s (no re-send from the planner): stop, even with a fresh pose.
     h.send("ground_truth", ros.pose_stamped(4.1, "map", Pose2D(0.5, 0.0, 0.0)))
-    h.step(4.1, {"cmd_vel": 4})
+    step(4.1, {"cmd_vel": 4})
     assert h.received["cmd_vel"][-1].linear.x == 0.0
     h.send("path", ros.path_msg(4.2, "map", line))
-    h.step(4.2, {"cmd_vel": 5})
+    step(4.2, {"cmd_vel": 5})
     assert h.received["cmd_vel"][-1].linear.x > 0.0
     # Driving on to the goal: stop there and report reached, once.
     for i, x in enumerate((1.0, 1.5, 2.0, 2.5)):
         h.send("ground_truth", ros.pose_stamped(4.21 + 0.01 * i, "map", Pose2D(x, 0.0, 0.0)))
-        h.step(4.21 + 0.01 * i)
+        step(4.21 + 0.01 * i)
     h.send("ground_truth", ros.pose_stamped(4.3, "map", Pose2D(2.97, 0.0, 0.0)))
-    h.step(4.3, {"cmd_vel": 10, "goal_status": 2})  # the test's "following", the controller's "reached"
+    step(4.3, {"cmd_vel": 10, "goal_status": 2})  # the test's "following", the controller's "reached"
     reached = h.received["goal_status"][-1]
     assert (reached.goal_id, reached.state) == (1, STATUS.STATE_REACHED)
     # A late heartbeat of the finished goal does not revive it.
     h.send("goal_status", _status(4.35, 1, STATUS.STATE_FOLLOWING))
     h.send("ground_truth", ros.pose_stamped(4.4, "map", Pose2D(1.0, 0.0, 0.0)))
-    h.step(4.4, {"cmd_vel": 11})
+    step(4.4, {"cmd_vel": 11})
     assert h.received["cmd_vel"][-1].linear.x == 0.0 and h.service.goal is None
     # Goal 2 follows; then the planner fails it: the controller stops at once.
     h.send("goal_status", _status(4.5, 2, STATUS.STATE_FOLLOWING))
     h.send("path", ros.path_msg(4.5, "map", line))
     h.send("ground_truth", ros.pose_stamped(4.5, "map", Pose2D(1.0, 0.0, 0.0)))
-    h.step(4.5, {"cmd_vel": 12})
+    step(4.5, {"cmd_vel": 12})
     assert h.received["cmd_vel"][-1].linear.x > 0.0
     h.send("goal_status", _status(4.55, 2, STATUS.STATE_FAILED))
-    h.step(4.6, {"cmd_vel": 13})
+    step(4.6, {"cmd_vel": 13})
     assert h.received["cmd_vel"][-1].linear.x == 0.0 and h.service.goal is None
     # Goal 3 with the robot far from its path: stop and wait for a new plan.
     h.send("goal_status", _status(4.7, 3, STATUS.STATE_FOLLOWING))
     h.send("path", ros.path_msg(4.7, "map", line))
     h.send("ground_truth", ros.pose_stamped(4.7, "map", Pose2D(1.0, 1.5, 0.0)))
-    h.step(4.7, {"cmd_vel": 14})
+    step(4.7, {"cmd_vel": 14})
     assert h.received["cmd_vel"][-1].linear.x == 0.0 and h.service.goal is not None
     assert [s.goal_id for s in h.received["goal_status"] if s.state == STATUS.STATE_REACHED] == [1]
+
+
+def test_controller_stops_without_a_recent_scan(peer: Peer) -> None:
+    h = Harness(ControllerService, peer, ("cmd_vel",), scan_timeout_s=0.5)
+    line = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31)]
+    h.send("goal_status", _status(1.0, 1, STATUS.STATE_FOLLOWING))
+    h.send("path", ros.path_msg(1.0, "map", line))
+    h.send("ground_truth", ros.pose_stamped(1.0, "map", Pose2D(0.0, 0.0, 0.0)))
+    h.step(1.0, {"cmd_vel": 1})  # no scan yet
+    assert h.received["cmd_vel"][-1].linear.x == 0.0
+    h.send("scan", _clear_scan(1.0))
+    h.send("ground_truth", ros.pose_stamped(1.1, "map", Pose2D(0.0, 0.0, 0.0)))
+    h.step(1.1, {"cmd_vel": 2})
+    assert h.received["cmd_vel"][-1].linear.x > 0.0
+    h.send("ground_truth", ros.pose_stamped(1.7, "map", Pose2D(0.0, 0.0, 0.0)))
+    h.step(1.7, {"cmd_vel": 3})  # the scan is 0.7 s old
+    assert h.received["cmd_vel"][-1].linear.x == 0.0
+
+
+def test_controller_fails_a_goal_without_progress_or_planner(peer: Peer) -> None:
+    """Nav2's progress checker: no 0.25 m of motion in 20 s fails the goal with ERROR_TIMEOUT; so does a planner
+    whose heartbeat stopped for planner_timeout_s."""
+    h = Harness(
+        ControllerService, peer, ("cmd_vel", "goal_status"), progress_timeout_s=20.0, progress_radius_m=0.25,
+        planner_timeout_s=15.0, path_timeout_s=100.0, pose_timeout_s=100.0,
+    )  # fmt: skip
+    step = _scanning(h)
+    line = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31)]
+    h.send("path", ros.path_msg(0.0, "map", line))
+    for t, x in ((0.0, 0.0), (10.0, 0.2), (19.9, 0.1), (25.0, 0.3), (44.0, 0.4)):
+        h.send("goal_status", _status(t, 1, STATUS.STATE_FOLLOWING))  # the planner's heartbeat
+        h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(x, 0.0, 0.0)))
+        step(t)
+        assert h.service.goal is not None, f"goal ended at {t} s"  # moved 0.3 m at 25 s: progress
+    h.send("goal_status", _status(45.1, 1, STATUS.STATE_FOLLOWING))
+    h.send("ground_truth", ros.pose_stamped(45.1, "map", Pose2D(0.45, 0.0, 0.0)))
+    step(45.1, {"goal_status": 7})  # 20.1 s within 0.25 m of (0.3, 0)
+    failed = h.received["goal_status"][-1]
+    assert (failed.goal_id, failed.state, failed.error_code) == (1, STATUS.STATE_FAILED, STATUS.ERROR_TIMEOUT)
+    assert "no progress" in failed.error_text and h.service.goal is None
+    assert h.received["cmd_vel"][-1].linear.x == 0.0
+    # Goal 2: the planner falls silent after its first heartbeat.
+    h.send("goal_status", _status(50.0, 2, STATUS.STATE_FOLLOWING))
+    h.send("path", ros.path_msg(50.0, "map", line))
+    for t in (50.0, 60.0, 65.0):
+        h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(t / 100.0, 0.0, 0.0)))
+        step(t)
+    assert h.service.goal is not None
+    h.send("ground_truth", ros.pose_stamped(65.2, "map", Pose2D(0.7, 0.0, 0.0)))
+    step(65.2, {"goal_status": 9})
+    failed = h.received["goal_status"][-1]
+    assert (failed.goal_id, failed.state, failed.error_code) == (2, STATUS.STATE_FAILED, STATUS.ERROR_TIMEOUT)
+    assert "planner" in failed.error_text
+
+
+def test_planner_withdraws_the_plan_on_a_stale_costmap_and_resumes_on_a_fresh_one(planner: Harness) -> None:
+    planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
+    planner.step(0.0, {"goal_status": 3, "plan": 1})
+    planner.step(3.5, {"plan": 2})  # the costmap (0.0) is 3.5 s old: withdrawn
+    assert len(planner.received["plan"][-1].poses) == 0 and planner.service.goal is not None
+    planner.step(4.0)
+    assert len(planner.received["plan"]) == 2  # withdrawn once, and no heartbeat re-sends the old plan
+    planner.send("costmap", _costmap(4.1, _free()))
+    planner.step(4.2, {"plan": 3, "goal_status": 4})
+    assert len(planner.received["plan"][-1].poses) > 0
+    assert _states(planner)[-1] == (1, STATUS.STATE_FOLLOWING, 0)
+
+
+def test_planner_drops_a_goal_the_controller_ended(planner: Harness) -> None:
+    planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
+    planner.step(0.0, {"goal_status": 3, "plan": 1})
+    timeout = STATUS(
+        header=ros.header(0.5, "map"), goal_id=1, state=STATUS.STATE_FAILED, error_code=STATUS.ERROR_TIMEOUT,
+        error_text="no progress", goal=ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)),
+    )  # fmt: skip
+    planner.send("goal_status", timeout)
+    planner.step(0.6, {"plan": 2})
+    assert planner.service.goal is None and len(planner.received["plan"][-1].poses) == 0
+
+
+def test_a_restarted_planner_resumes_its_goal_under_the_same_id(
+    peer: Peer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("MJNAV_STATE_DIR", str(tmp_path))
+    first = Harness(PlannerService, peer, ("goal_status", "plan"), heartbeat_period_s=100.0)
+    first.send("costmap", _costmap(0.0, _free()))
+    first.send("ground_truth", ros.pose_stamped(0.0, "map", Pose2D(0.55, 2.05, 0.0)))
+    first.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
+    first.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 1.05, 0.0)))  # goal 2 supersedes goal 1
+    first.step(0.0, {"goal_status": 6, "plan": 2})
+    # A new process (same state directory) takes over: goal 2, same target, same id; the next goal gets id 3.
+    first.service.bus.close()  # the first process is gone (its subscriptions must not answer for the second's)
+    second = Harness(PlannerService, peer, ("goal_status", "plan"), heartbeat_period_s=100.0)
+    assert second.service.goal is not None and second.service.goal.goal_id == 2
+    assert (second.service.goal.pose.x, second.service.goal.pose.y) == (3.45, 1.05)
+    second.send("costmap", _costmap(0.1, _free()))
+    second.send("ground_truth", ros.pose_stamped(0.1, "map", Pose2D(1.0, 2.05, 0.0)))
+    second.step(0.2, {"plan": 1})
+    assert _states(second)[-1] == (2, STATUS.STATE_FOLLOWING, 0)
+    second.send("goal", ros.pose_stamped(0.3, "map", Pose2D(2.0, 2.05, 0.0)))
+    second.step(0.3, {"goal_status": 4})
+    assert [s[:2] for s in _states(second)[1:4]] == [(2, STATUS.STATE_CANCELED), (3, STATUS.STATE_ACCEPTED),
+                                                     (3, STATUS.STATE_PLANNING)]  # fmt: skip
+    # Once the goal ended, a third process starts without one.
+    second.send("cancel", msg_class("std_msgs/msg/Empty")())
+    second.step(0.4, {"goal_status": 6})
+    second.service.bus.close()
+    third = Harness(PlannerService, peer, ("goal_status",))
+    assert third.service.goal is None and third.service.next_id == 4
+
+
+def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
+    peer: Peer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("MJNAV_STATE_DIR", str(tmp_path / "state"))
+    (tmp_path / "state").mkdir()
+    maps = tmp_path / "maps"
+    first = Harness(MapperService, peer, ("map",), checkpoint_period_s=1.0, maps_dir=str(maps))
+    scan = ros.laser_scan(
+        0.0, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / 90, scan_time_s=0.1,
+        range_min_m=0.05, range_max_m=12.0, ranges_m=np.full(90, 2.0),
+    )  # fmt: skip
+    first.send("ground_truth", ros.pose_stamped(0.0, "map", Pose2D(0.0, 0.0, 0.0)))
+    first.send("scan", scan)
+    first.step(0.0, {"map": 1})
+    known = np.count_nonzero(first.service.grid.log_odds)
+    assert known > 1000
+    first.service.bus.close()
+    second = Harness(MapperService, peer, ("map",), maps_dir=str(maps))
+    np.testing.assert_array_equal(second.service.grid.log_odds, first.service.grid.log_odds)
+    # save_map: relative paths land in maps_dir; anything outside it is refused and nothing is written.
+    string = msg_class("std_msgs/msg/String")
+    reply = json.loads(second.world.call("save_map", string(data="run1/rooms.yaml"), timeout_s=10.0).data)
+    assert Path(reply["yaml"]) == maps / "run1" / "rooms.yaml" and (maps / "run1" / "rooms.yaml").exists()
+    for bad in (str(tmp_path / "evil.yaml"), "../evil.yaml", "run1/../../evil.yaml"):
+        with pytest.raises(RemoteError, match="maps_dir"):
+            second.world.call("save_map", string(data=bad), timeout_s=10.0)
+    assert not (tmp_path / "evil.yaml").exists()

@@ -1,0 +1,207 @@
+"""Faults and hostile input against the real stack (`mjnav up`, lockstep, loopback Zenoh): crashed and hung services,
+a forged clock, goals inside furniture, bad settings, a taken port, health without a router.
+
+Each mission asserts on sim-time outcomes (reached / ended with a code, collisions) and on what the launcher and the
+services log; none on wall time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+import pytest
+
+from mjnav.bus import Bus, BusConfig, wait_until
+from mjnav.msgs import msg_class
+from mjnav.msgs.ros import seconds as ros_seconds
+from mjnav.runtime.mission import GoalOutcome, MissionClient
+from tests.conftest import REPO, free_port
+from tests.services.test_navigation import SERVICES, up_process
+
+STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
+GOAL = (3.8, 2.2)  # rooms: from the start, through a door, ~7 m
+
+
+@contextmanager
+def stack(*extra: str) -> Iterator[tuple[Bus, MissionClient, list[str]]]:
+    """The shipped stack in the rooms world at the fastest lockstep rate, with the given extra `mjnav up` args;
+    yields a bus on its router, a mission client (a lockstep participant) and the launcher's output lines."""
+    args = ["--set", "sim.rtf=0", "--set", 'sim.lockstep_participants=["mapper", "planner", "smoother", '
+            '"controller", "mission"]', "--seed", "3", *extra]  # fmt: skip
+    with up_process(*args) as (port, _proc, lines):
+        bus = Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",)))
+        try:
+            client = MissionClient(bus)
+            assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
+            yield bus, client, lines
+        finally:
+            bus.close()
+
+
+def _run_goal_in_background(client: MissionClient, goal: tuple[float, float]) -> tuple[threading.Thread, list[Any]]:
+    outcome: list[Any] = []
+    runner = threading.Thread(
+        target=lambda: outcome.append(client.run_goal(*goal, timeout_s=240.0, wall_timeout_s=400.0)), daemon=True
+    )
+    runner.start()
+    return runner, outcome
+
+
+def _status_of(bus: Bus, service: str) -> Any:
+    status = bus.subscribe("status", service=service, immediate=True)
+    first = status.wait(60.0)
+    assert first is not None, f"no status from {service}"
+    return status, first
+
+
+def _wait_driving(client: MissionClient, metres: float) -> None:
+    assert wait_until(lambda: client.driven_m() >= metres, 120.0), "the robot never drove"
+
+
+def _known_cells(msg: Any) -> int:
+    return int(np.count_nonzero(np.asarray(msg.data) >= 0))
+
+
+@pytest.mark.parametrize("service", ["mapper", "planner", "smoother"])
+def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(service: str) -> None:
+    with stack() as (bus, client, lines):
+        status, first = _status_of(bus, service)
+        maps: list[Any] = []
+        bus.subscribe("map", callback=maps.append, immediate=True)
+        runner, outcome = _run_goal_in_background(client, GOAL)
+        _wait_driving(client, 1.5)
+        known_before = _known_cells(maps[-1])
+        os.kill(first.pid, signal.SIGKILL)
+        restarted = status.wait(120.0, lambda s: s.pid != first.pid)
+        assert restarted is not None, f"the launcher did not restart the {service}"
+        runner.join(400.0)
+        assert outcome, "the mission did not end"
+        result: GoalOutcome = outcome[0]
+        assert result.result == "reached", result
+        assert result.goal_id == 1  # the same goal all along: a restarted planner resumed it, not a new one
+        assert client.collisions() == 0
+    text = "".join(lines)
+    assert f"{service} exited with code -9" in text and "Traceback" not in text
+    if service == "planner":
+        assert "resuming goal 1" in text
+    if service == "mapper":
+        assert "resumed the map from checkpoint" in text
+        # The restarted mapper's first map holds (nearly) everything known before the kill: at most the scans of
+        # one checkpoint period are lost, and new scans only add cells.
+        after = [m for m in maps if ros_seconds(m.header.stamp) > ros_seconds(restarted.header.stamp)]
+        assert after and _known_cells(after[0]) >= 0.9 * known_before, (known_before, _known_cells(after[0]))
+
+
+@pytest.mark.parametrize("service", ["mapper", "planner", "controller"])
+def test_a_hung_service_is_killed_restarted_and_the_mission_completes(service: str) -> None:
+    with stack("--hung-timeout", "2") as (bus, client, lines):
+        status, first = _status_of(bus, service)
+        runner, outcome = _run_goal_in_background(client, GOAL)
+        _wait_driving(client, 1.5)
+        os.kill(first.pid, signal.SIGSTOP)  # hung: holds its token and sockets, answers nothing
+        try:
+            restarted = status.wait(120.0, lambda s: s.pid != first.pid)
+            assert restarted is not None, f"the launcher did not replace the hung {service}"
+        finally:
+            with contextlib.suppress(ProcessLookupError):  # killed by the launcher, as it should be
+                os.kill(first.pid, signal.SIGCONT)
+        runner.join(400.0)
+        assert outcome and outcome[0].result == "reached", outcome
+        assert client.collisions() == 0
+    text = "".join(lines)
+    assert f"{service} (pid {first.pid}) is hung" in text and "restarting" in text
+
+
+def test_a_forged_clock_neither_stalls_nor_fast_forwards_the_stack() -> None:
+    """`mjnav pub robot0/clock '{clock: {sec: 2147483647}}'` from a stranger, mid-mission: every service drops it
+    (a jump far beyond the sim's tick), keeps stepping, and the mission ends as it would have."""
+    with stack() as (bus, client, lines):
+        runner, outcome = _run_goal_in_background(client, GOAL)
+        _wait_driving(client, 1.0)
+        clock_cls = msg_class("rosgraph_msgs/msg/Clock")
+        time_cls = msg_class("builtin_interfaces/msg/Time")
+        forged = bus.publisher("clock")
+        for _ in range(20):
+            forged.put(clock_cls(clock=time_cls(sec=2**31 - 1, nanosec=0)))
+        runner.join(400.0)
+        assert outcome and outcome[0].result == "reached", outcome
+        assert client.collisions() == 0
+    text = "".join(lines)
+    for service in ("mapper", "planner", "smoother", "controller"):
+        assert f"[{service}]" in text and "clock jump from" in text
+    assert "Traceback" not in text and "re-activating" not in text
+
+
+def test_goals_inside_furniture_end_with_a_typed_failure_and_no_collision() -> None:
+    with stack() as (_bus, client, lines):
+        for goal in ((2.5, 3.9), (-1.0, -4.55)):  # the table, the cabinet (solid boxes)
+            result = client.run_goal(*goal, timeout_s=120.0, wall_timeout_s=400.0)
+            assert result.result == "failed", result
+            assert result.error_code in (STATUS.ERROR_GOAL_OCCUPIED, STATUS.ERROR_NO_PATH, STATUS.ERROR_TIMEOUT)
+            assert result.time_s < 120.0
+        assert client.collisions() == 0
+    assert "Traceback" not in "".join(lines)
+
+
+def _mjnav(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}
+    return subprocess.run(
+        [sys.executable, "-m", "mjnav", *args], cwd=REPO, env=env, capture_output=True, text=True, timeout=timeout_s
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--set", "sim.lidar_beamz=720"], "--set sim.lidar_beamz: sim has no setting 'lidar_beamz'"),
+        (["--world", "moon"], "unknown world 'moon'"),
+        (["--set", "planner.improvement=2"], "improvement must be in (0, 1]"),
+        (["--set", "mapper.rate_hz=fast"], "expected a number"),
+        (["--stack", "nowhere/stack.toml"], "nowhere/stack.toml"),
+    ],
+)
+def test_bad_settings_fail_before_anything_starts(args: list[str], message: str) -> None:
+    for command in (["up", "--port", str(free_port())], ["demo", "--port", str(free_port())]):
+        done = _mjnav(*command, *args)
+        assert done.returncode == 2, (command, done.stdout, done.stderr)
+        assert message in done.stderr and done.stderr.count("\n") == 1, done.stderr
+        assert "started" not in done.stdout + done.stderr  # no service was launched
+
+
+def test_a_taken_port_is_named_and_nothing_starts() -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        for command in ("up", "demo"):
+            done = _mjnav(command, "--port", str(port))
+            assert done.returncode == 2
+            assert f"port {port} in use" in done.stderr and "use --port" in done.stderr
+            assert "started" not in done.stdout + done.stderr
+
+
+def test_health_without_a_router_answers_within_its_timeout() -> None:
+    port = free_port()
+    done = _mjnav("health", "--mode", "client", "--connect", f"tcp/127.0.0.1:{port}", "--timeout", "1", timeout_s=30)
+    assert done.returncode == 1
+    assert "no Zenoh router or peer reachable" in done.stderr
+
+
+def test_health_status_names_a_stalled_loop() -> None:
+    """A sim-time service without a sim: alive and active, but its loop never steps."""
+    with up_process("--only", "smoother") as (port, _proc, _lines):
+        connect = ["--mode", "client", "--connect", f"tcp/127.0.0.1:{port}"]
+        assert wait_until(lambda: _mjnav("health", "smoother", *connect, "--timeout", "2").returncode == 0, 120.0)
+        done = _mjnav("health", "smoother", "--status", *connect, "--timeout", "3")
+        assert done.returncode == 1, done.stdout + done.stderr
+        assert "smoother: loop stalled (step count stuck at 0)" in done.stderr
