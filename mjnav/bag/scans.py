@@ -107,13 +107,13 @@ def read_scans(path: str | Path, namespace: str | None = None) -> ScanLog:
             raise BagFormatError(f"{p}: undecodable {typename} on {key}: {exc}") from exc
         if typename == SCAN_TYPE:
             r = np.asarray(msg.ranges, dtype=np.float64)
-            a = float(msg.angle_min) + float(msg.angle_increment) * np.arange(r.size)
+            a = float(msg.angle_min) + float(msg.angle_increment) * np.arange(r.size, dtype=np.float64)
             scans.setdefault(ns, []).append((_stamp(msg.header), r, a, float(msg.range_min), float(msg.range_max)))
         else:
             q = msg.pose.pose.orientation
-            yaw = quaternion_to_yaw(float(q.x), float(q.y), float(q.z), float(q.w))
+            heading = quaternion_to_yaw(float(q.x), float(q.y), float(q.z), float(q.w))
             pos = msg.pose.pose.position
-            odoms.setdefault(ns, []).append((_stamp(msg.header), float(pos.x), float(pos.y), yaw))
+            odoms.setdefault(ns, []).append((_stamp(msg.header), float(pos.x), float(pos.y), heading))
     both = sorted(set(scans) & set(odoms))
     if namespace is None:
         if len(both) != 1:
@@ -124,13 +124,13 @@ def read_scans(path: str | Path, namespace: str | None = None) -> ScanLog:
         raise BagError(f"{p}: namespace {namespace!r} has no scan and odom (namespaces with both: {both})")
     od = np.array(sorted(odoms[namespace]), dtype=np.float64)
     t_od = od[:, 0]
-    yaw = np.unwrap(od[:, 3])
+    od_yaw = np.unwrap(od[:, 3])
     rows = sorted(scans[namespace], key=lambda s: s[0])
     kept = [s for s in rows if t_od[0] <= s[0] <= t_od[-1]]
     if not kept:
         raise BagError(f"{p}: no scan of {namespace} lies within the odometry's time span")
     t = np.array([s[0] for s in kept])
-    odom = np.column_stack((np.interp(t, t_od, od[:, 1]), np.interp(t, t_od, od[:, 2]), np.interp(t, t_od, yaw)))
+    odom = np.column_stack((np.interp(t, t_od, od[:, 1]), np.interp(t, t_od, od[:, 2]), np.interp(t, t_od, od_yaw)))
     odom[:, 2] = np.remainder(odom[:, 2] + math.pi, 2.0 * math.pi) - math.pi
     return ScanLog(
         namespace=namespace,

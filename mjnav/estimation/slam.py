@@ -154,6 +154,7 @@ _MAY_BE_ZERO = {
     "motion_sigma_per_m",
     "motion_sigma_rad_per_rad",
     "loop_min_separation_keyframes",
+    "loop_min_travel_m",
     "optimize_min_chi2",
 }
 
@@ -220,7 +221,9 @@ class SlamConfig:
         loop_search_radius_m: submaps with a keyframe this close to the new keyframe are loop candidates, metres.
         loop_candidates: at most this many candidate submaps are matched per keyframe (0 disables loop closure).
         loop_min_separation_keyframes: a submap is a candidate only when its last keyframe is at least this many
-            keyframes older than the local map's oldest one.
+            keyframes older than the local map's oldest one ...
+        loop_min_travel_m: ... and the robot has travelled at least this far since it (so a loop closure is a
+            return to a place, not the corridor just driven), metres.
         loop_resolution_m: cell of the submaps' likelihood fields, metres.
         loop_window_m: loop search half-width in x and y, metres.
         loop_window_rad: loop search half-width in θ, radians.
@@ -258,6 +261,7 @@ class SlamConfig:
     loop_search_radius_m: float = 6.0
     loop_candidates: int = 2
     loop_min_separation_keyframes: int = 5
+    loop_min_travel_m: float = 10.0
     loop_resolution_m: float = 0.1
     loop_window_m: float = 2.0
     loop_window_rad: float = math.radians(30.0)
@@ -372,6 +376,7 @@ class GraphSlam:
         self._graph = _Graph()
         self._kf_scans: list[_Scan] = []
         self._kf_stamps: list[float] = []
+        self._kf_travel: list[float] = []  # path length from the first keyframe, metres
         self._submaps: list[_Submap] = []
         self._submap_cache: OrderedDict[int, tuple[CorrelativeGridMatcher, PointReference]] = OrderedDict()
         self._local: tuple[CorrelativeGridMatcher, PointReference] | None = None
@@ -583,6 +588,10 @@ class GraphSlam:
         self._kf_stamps.append(t)
         if k > 0:
             z = relative(g.poses[k - 1], g.poses[k])
+            self._kf_travel.append(self._kf_travel[-1] + math.hypot(z[0], z[1]))
+        else:
+            self._kf_travel.append(0.0)
+        if k > 0:
             g.edges.append((k - 1, k))
             g.measurements.append(z)
             g.information.append(self._edge_information(z))
@@ -662,7 +671,8 @@ class GraphSlam:
         here = poses[k]
         candidates: list[tuple[float, int]] = []
         for i, sub in enumerate(self._submaps):
-            if sub.members.stop - 1 > newest_excluded:
+            last = sub.members.stop - 1
+            if last > newest_excluded or self._kf_travel[k] - self._kf_travel[last] < cfg.loop_min_travel_m:
                 continue
             d = float(np.min(np.hypot(*(poses[sub.members.start : sub.members.stop, :2] - here[:2]).T)))
             if d <= cfg.loop_search_radius_m:
