@@ -560,6 +560,12 @@ class GraphSlam:
             fine = ref.match(
                 scan.points, coarse.pose, "plicp", max_correspondence_m=cfg.icp_max_correspondence_m, max_iterations=50
             )
+            if fine.degenerate:
+                # A corridor: the correlative search is flat along it and may pick any offset there; PL-ICP from
+                # the odometry prediction keeps the prediction in the unobservable direction instead.
+                corr = cfg.icp_max_correspondence_m
+                fine = ref.match(scan.points, predicted, "plicp", max_correspondence_m=corr, max_iterations=50)
+                coarse = fine
         except ScanMatchError:
             return coarse.pose.copy(), self._floor_cov(coarse.covariance), 0.0, True
         jump = relative(coarse.pose, fine.pose)
@@ -708,7 +714,11 @@ class GraphSlam:
             except ScanMatchError:
                 continue
             jump = relative(coarse.pose, fine.pose)
-            if fine.score < cfg.loop_min_inliers or math.hypot(jump[0], jump[1]) > 2.0 * cfg.loop_resolution_m:
+            if (
+                fine.degenerate  # a corridor: the match slides along it
+                or fine.score < cfg.loop_min_inliers
+                or math.hypot(jump[0], jump[1]) > 2.0 * cfg.loop_resolution_m
+            ):
                 continue
             g.edges.append((sub.anchor, k))
             g.measurements.append(fine.pose.copy())
