@@ -54,14 +54,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from mjnav.estimation import _scan_kernels as kern
 from mjnav.estimation.errors import EstimationError
-from mjnav.mapping import GridFrame, OccupancyGrid, clearance_m, log_odds_to_prob
+from mjnav.mapping import GridFrame, OccupancyGrid, log_odds_to_prob
 
 __all__ = [
     "CorrelativeGridMatcher",
     "InsufficientPointsError",
     "NoMatchError",
+    "PointReference",
     "ScanMatchError",
     "ScanMatchResult",
+    "likelihood_field",
     "scan_match",
     "scan_to_points",
 ]
@@ -211,85 +213,142 @@ def _covariance_from_information(
     return cov, bool(degenerate)
 
 
-def _icp(
-    ref: NDArray[np.float64],
-    scan: NDArray[np.float64],
-    init: tuple[float, float, float],
-    point_to_line: bool,
-    max_iterations: int,
-    max_correspondence_m: float,
-    outlier_mult: float,
-    tolerance_m: float,
-    tolerance_rad: float,
-) -> ScanMatchResult:
-    cell = _HASH_CELL_M
-    slot_key, slot_val, starts, order = kern.build_hash(ref, cell)
-    normals, line_ok = kern.fit_normals(
-        ref,
-        slot_key,
-        slot_val,
-        starts,
-        order,
-        cell,
-        _NORMAL_RADIUS_M,
-        _NORMAL_MAX_RADIUS_M,
-        _NORMAL_MIN_K,
-        _NORMAL_MAX_RATIO,
-    )
-    if point_to_line and int(line_ok.sum()) < 3:
-        raise InsufficientPointsError("the reference has fewer than 3 points on a line (PL-ICP needs lines)")
-    scale_len = float(np.sqrt(np.mean(np.sum(scan * scan, axis=1)))) or 1.0
-    x, y, th, it, converged, nn, inl = kern.icp_kernel(
-        ref,
-        normals,
-        line_ok,
-        slot_key,
-        slot_val,
-        starts,
-        order,
-        cell,
-        scan,
-        init[0],
-        init[1],
-        init[2],
-        point_to_line,
-        max_iterations,
-        max_correspondence_m,
-        outlier_mult,
-        tolerance_m,
-        tolerance_rad,
-        1.0 / scale_len,
-        _ANNEAL,
-    )
-    n_in = int(inl.sum())
-    if n_in < 3:
-        raise InsufficientPointsError(
-            f"only {n_in} scan points have a reference point within {max_correspondence_m} m "
-            "(too little overlap, or the initial pose is too far off)"
+class PointReference:
+    """A reference point set prepared once (spatial hash and line normals) for many ICP / PL-ICP matches.
+
+    :func:`scan_match` prepares its reference on every call; a caller matching many scans against the same
+    reference (a SLAM front end's local map, a localizer's map points) builds this once and calls :meth:`match`.
+    The results are identical to :func:`scan_match` with the same arguments.
+
+    Args:
+        reference_xy: (N, 2) reference points, metres, reference frame (non-finite rows dropped). Points from
+            consecutive beams of one scan should stay consecutive (the normals use index-contiguous runs).
+
+    Raises:
+        InsufficientPointsError: fewer than 3 finite points.
+        ScanMatchError: a malformed argument.
+    """
+
+    def __init__(self, reference_xy: ArrayLike) -> None:
+        ref = _points(reference_xy, "reference_xy", 3)
+        self.points = ref
+        cell = _HASH_CELL_M
+        self._hash = kern.build_hash(ref, cell)
+        slot_key, slot_val, starts, order = self._hash
+        self._normals, self._line_ok = kern.fit_normals(
+            ref,
+            slot_key,
+            slot_val,
+            starts,
+            order,
+            cell,
+            _NORMAL_RADIUS_M,
+            _NORMAL_MAX_RADIUS_M,
+            _NORMAL_MIN_K,
+            _NORMAL_MAX_RATIO,
         )
-    H, ss, m = kern.point_to_line_hessian(ref, normals, line_ok, scan, nn, inl, x, y, th)
-    if m >= 4:
-        sigma2 = ss / (m - 3)
-    else:  # no lines matched: point-to-point information (isotropic per pair)
-        c, s = math.cos(th), math.sin(th)
-        pr = scan[inl] @ np.array([[c, s], [-s, c]])
-        H = np.zeros((3, 3))
-        H[0, 0] = H[1, 1] = n_in
-        H[0, 2] = H[2, 0] = -float(pr[:, 1].sum())
-        H[1, 2] = H[2, 1] = float(pr[:, 0].sum())
-        H[2, 2] = float(np.sum(pr * pr))
-        d = ref[nn[inl]] - (pr + np.array([x, y]))
-        sigma2 = float(np.sum(d * d)) / max(2 * n_in - 3, 1)
-    cov, degenerate = _covariance_from_information(H, sigma2, scale_len)
-    return ScanMatchResult(
-        pose=np.array([x, y, _wrap(th)]),
-        covariance=cov,
-        score=n_in / scan.shape[0],
-        iterations=int(it),
-        converged=bool(converged),
-        degenerate=degenerate,
-        method="plicp" if point_to_line else "icp",
-    )
+
+    def match(
+        self,
+        scan_xy: ArrayLike,
+        initial: ArrayLike = (0.0, 0.0, 0.0),
+        method: Literal["icp", "plicp"] = "plicp",
+        *,
+        max_iterations: int = 100,
+        max_correspondence_m: float = 1.0,
+        outlier_mult: float = 3.0,
+        tolerance_m: float = 1e-5,
+        tolerance_rad: float = 1e-6,
+    ) -> ScanMatchResult:
+        """Register a scan to the prepared reference by ICP or PL-ICP (arguments as :func:`scan_match`).
+
+        Raises:
+            InsufficientPointsError: fewer than 3 scan points or correspondences, or (PL-ICP) fewer than 3
+                reference points on a line.
+            ScanMatchError: unknown method or a malformed argument.
+        """
+        if method not in ("icp", "plicp"):
+            raise ScanMatchError(f"PointReference.match: method must be 'icp' or 'plicp', got {method!r}")
+        if not isinstance(max_iterations, int | np.integer) or max_iterations < 1:
+            raise ScanMatchError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
+        return self._match(
+            _points(scan_xy, "scan_xy", 3),
+            _pose3(initial),
+            method == "plicp",
+            int(max_iterations),
+            _positive(max_correspondence_m, "max_correspondence_m"),
+            _positive(outlier_mult, "outlier_mult"),
+            _positive(tolerance_m, "tolerance_m"),
+            _positive(tolerance_rad, "tolerance_rad"),
+        )
+
+    def _match(
+        self,
+        scan: NDArray[np.float64],
+        init: tuple[float, float, float],
+        point_to_line: bool,
+        max_iterations: int,
+        max_correspondence_m: float,
+        outlier_mult: float,
+        tolerance_m: float,
+        tolerance_rad: float,
+    ) -> ScanMatchResult:
+        ref, normals, line_ok = self.points, self._normals, self._line_ok
+        slot_key, slot_val, starts, order = self._hash
+        if point_to_line and int(line_ok.sum()) < 3:
+            raise InsufficientPointsError("the reference has fewer than 3 points on a line (PL-ICP needs lines)")
+        scale_len = float(np.sqrt(np.mean(np.sum(scan * scan, axis=1)))) or 1.0
+        x, y, th, it, converged, nn, inl = kern.icp_kernel(
+            ref,
+            normals,
+            line_ok,
+            slot_key,
+            slot_val,
+            starts,
+            order,
+            _HASH_CELL_M,
+            scan,
+            init[0],
+            init[1],
+            init[2],
+            point_to_line,
+            max_iterations,
+            max_correspondence_m,
+            outlier_mult,
+            tolerance_m,
+            tolerance_rad,
+            1.0 / scale_len,
+            _ANNEAL,
+        )
+        n_in = int(inl.sum())
+        if n_in < 3:
+            raise InsufficientPointsError(
+                f"only {n_in} scan points have a reference point within {max_correspondence_m} m "
+                "(too little overlap, or the initial pose is too far off)"
+            )
+        H, ss, m = kern.point_to_line_hessian(ref, normals, line_ok, scan, nn, inl, x, y, th)
+        if m >= 4:
+            sigma2 = ss / (m - 3)
+        else:  # no lines matched: point-to-point information (isotropic per pair)
+            c, s = math.cos(th), math.sin(th)
+            pr = scan[inl] @ np.array([[c, s], [-s, c]])
+            H = np.zeros((3, 3))
+            H[0, 0] = H[1, 1] = n_in
+            H[0, 2] = H[2, 0] = -float(pr[:, 1].sum())
+            H[1, 2] = H[2, 1] = float(pr[:, 0].sum())
+            H[2, 2] = float(np.sum(pr * pr))
+            d = ref[nn[inl]] - (pr + np.array([x, y]))
+            sigma2 = float(np.sum(d * d)) / max(2 * n_in - 3, 1)
+        cov, degenerate = _covariance_from_information(H, sigma2, scale_len)
+        return ScanMatchResult(
+            pose=np.array([x, y, _wrap(th)]),
+            covariance=cov,
+            score=n_in / scan.shape[0],
+            iterations=int(it),
+            converged=bool(converged),
+            degenerate=degenerate,
+            method="plicp" if point_to_line else "icp",
+        )
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -490,6 +549,49 @@ class CorrelativeGridMatcher:
         return self._result(rows, cols, init, a, dr, dc, total, n_ang, step, scored, "brute_force")
 
 
+def likelihood_field(
+    reference_xy: ArrayLike, resolution_m: float, sigma_m: float | None = None
+) -> tuple[NDArray[np.float64], GridFrame, float]:
+    """Olson's (2009) rasterised per-point likelihood of a reference point set (the CSM lookup table).
+
+    Each cell holds log(exp(−d²/2σ²) + 0.01) of the distance d from its centre to the nearest reference point's
+    cell (a Gaussian mixed with a uniform floor of weight 1 %, so outliers cost a bounded amount), rescaled
+    linearly to [0, 1] (0 = the floor, also the value outside the table). It is evaluated within 4σ of the
+    reference cells and is the floor beyond (where the exact value is within 0.5 % of the range above the
+    floor). The table covers the points' bounding box grown by 4σ + 2 cells.
+
+    Args:
+        reference_xy: (N, 2) reference points, metres (non-finite rows dropped; at least 1).
+        resolution_m: cell size, metres.
+        sigma_m: likelihood width, metres (default 2 × resolution).
+
+    Returns:
+        (table (H, W) in [0, 1], its :class:`~mjnav.mapping.GridFrame`, scale): table × scale is the
+        log-likelihood difference to the floor (what :class:`CorrelativeGridMatcher` takes as ``loglik``).
+
+    Raises:
+        InsufficientPointsError: no finite point.
+        ScanMatchError: a bad resolution or width, or a table of more than 5e7 cells.
+    """
+    ref = _points(reference_xy, "reference_xy", 1)
+    res = _positive(resolution_m, "resolution_m")
+    sigma = _positive(sigma_m, "sigma_m") if sigma_m is not None else 2.0 * res
+    margin = 4.0 * sigma + 2.0 * res
+    lo = ref.min(axis=0) - margin
+    hi = ref.max(axis=0) + margin
+    shape = (math.ceil((hi[1] - lo[1]) / res) + 1, math.ceil((hi[0] - lo[0]) / res) + 1)
+    if shape[0] * shape[1] > 50_000_000:
+        raise ScanMatchError(f"likelihood table of {shape} cells is too large; raise the resolution")
+    frame = GridFrame(res, (float(lo[0]), float(lo[1])), shape)
+    cells = frame.world_to_cells(ref)
+    eps = 0.01
+    scale = math.log(1.0 + eps) - math.log(eps)
+    table = kern.likelihood_stamp(
+        np.ascontiguousarray(cells[:, 0]), np.ascontiguousarray(cells[:, 1]), shape[0], shape[1], res, sigma, eps
+    )
+    return table / scale, frame, scale
+
+
 def _csm(
     ref: NDArray[np.float64],
     scan: NDArray[np.float64],
@@ -500,27 +602,10 @@ def _csm(
     sigma_m: float | None,
 ) -> ScanMatchResult:
     res = _positive(resolution_m, "csm_resolution_m")
-    sigma = _positive(sigma_m, "csm_sigma_m") if sigma_m is not None else 2.0 * res
-    margin = 4.0 * sigma + 2.0 * res
-    lo = ref.min(axis=0) - margin
-    hi = ref.max(axis=0) + margin
-    shape = (math.ceil((hi[1] - lo[1]) / res) + 1, math.ceil((hi[0] - lo[0]) / res) + 1)
-    if shape[0] * shape[1] > 50_000_000:
-        raise ScanMatchError(f"CSM lookup table of {shape} cells is too large; raise csm_resolution_m")
-    frame = GridFrame(res, (float(lo[0]), float(lo[1])), shape)
-    occ = np.zeros(shape, dtype=bool)
-    cells = frame.world_to_cells(ref)
-    occ[cells[:, 0], cells[:, 1]] = True
-    d = clearance_m(occ, res)
-    # Per-point likelihood: Gaussian of the distance mixed with a uniform floor (weight 1 %), as log-likelihood
-    # normalised to [0, 1] (0 = the floor, also the value outside the table).
-    eps = 0.01
-    ll = np.log(np.exp(-0.5 * (d / sigma) ** 2) + eps)
-    ll_min, ll_max = math.log(eps), math.log(1.0 + eps)
-    table = (ll - ll_min) / (ll_max - ll_min)
+    table, frame, scale = likelihood_field(ref, res, sigma_m)
     w = math.ceil(window_m / res - 1e-9)
     depth = max(1, min(8, math.ceil(math.log2(2 * w + 1)) + 1))
-    matcher = CorrelativeGridMatcher(table, frame, depth=depth, loglik=table * (ll_max - ll_min))
+    matcher = CorrelativeGridMatcher(table, frame, depth=depth, loglik=table * scale)
     out = matcher.match(scan, init, linear_window_m=window_m, angular_window_rad=window_rad, min_score=-1.0)
     return ScanMatchResult(
         pose=out.pose,
@@ -589,8 +674,7 @@ def scan_match(
         return _csm(ref, scan, init, csm_resolution_m, csm_window_m, csm_window_rad, csm_sigma_m)
     if not isinstance(max_iterations, int | np.integer) or max_iterations < 1:
         raise ScanMatchError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
-    return _icp(
-        ref,
+    return PointReference(ref)._match(
         scan,
         init,
         method == "plicp",

@@ -1,0 +1,167 @@
+"""Graph SLAM and localization on a seeded synthetic ring world; Kümmerle's relative error; odometry noise."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mjnav.estimation.slam import GraphSlam, Localizer, SlamConfig, SlamError, compose, invert, relative
+from mjnav.estimation.slam_metrics import (
+    consecutive_relations,
+    corrupt_odometry,
+    distance_relations,
+    relative_pose_error,
+)
+from tests.estimation._slam_world import ring_drive, scans, true_map
+
+
+def _run(loop_candidates: int, seed: int) -> tuple[GraphSlam, np.ndarray, np.ndarray]:
+    truth = ring_drive()
+    rng = np.random.default_rng(seed)
+    angles, ranges = scans(truth, rng, noise_m=0.02)
+    odom = corrupt_odometry(truth, rng, (0.05, 0.05, 0.05))
+    # A 4 m lidar: the front end drifts by centimetres over the lap, so loop closure has something to correct.
+    slam = GraphSlam(SlamConfig(max_range_m=4.0, loop_candidates=loop_candidates), initial_pose=truth[0])
+    for k in range(truth.shape[0]):
+        est = slam.update(0.1 * k, odom[k], ranges[k], angles, range_min_m=0.1, range_max_m=12.0)
+        assert np.allclose(compose(est.map_to_odom, odom[k]), est.pose)
+    return slam, truth, odom
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_loop_closure_is_found_and_lowers_the_error(seed: int) -> None:
+    with_loops, truth, odom = _run(2, seed)
+    without, _, _ = _run(0, seed)
+    assert without.loop_closures == 0 and without.optimizations == 0
+    assert with_loops.loop_closures >= 1 and with_loops.optimizations >= 1
+    # A real loop: some closure joins a keyframe of the first 10 m to one driven after a full lap (≥ 50 m later).
+    kf_xy = with_loops.keyframe_poses()[:, :2]
+    travel = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(kf_xy, axis=0).T))))
+    pairs = with_loops.loop_edges()
+    assert np.any((travel[pairs[:, 0]] < 10.0) & (travel[pairs[:, 1]] > 50.0))
+
+    def ate(slam: GraphSlam) -> float:
+        _, traj = slam.trajectory()
+        return float(np.sqrt(np.mean(np.sum((traj[:, :2] - truth[:, :2]) ** 2, axis=1))))
+
+    odom_err = float(np.sqrt(np.mean(np.sum((odom[:, :2] - truth[:, :2]) ** 2, axis=1))))
+    assert ate(without) < 0.1 * odom_err  # the front end alone already removes most odometry drift
+    assert ate(with_loops) < 0.8 * ate(without)
+    assert ate(with_loops) < 0.08
+    # The returned estimate's covariance is a proper covariance.
+    cov = with_loops.covariance
+    assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
+
+
+def test_outputs_of_a_short_run() -> None:
+    truth = ring_drive(0.2)
+    rng = np.random.default_rng(5)
+    angles, ranges = scans(truth, rng)
+    odom = corrupt_odometry(truth, rng)
+    slam = GraphSlam()
+    for k in range(truth.shape[0]):
+        slam.update(0.1 * k, odom[k], ranges[k], angles, range_min_m=0.1, range_max_m=12.0)
+    stamps, traj = slam.trajectory()
+    assert traj.shape == (truth.shape[0], 3) and np.allclose(stamps, 0.1 * np.arange(truth.shape[0]))
+    # Map frame = odom frame at the start (no initial pose given): the first pose is the first odometry pose.
+    assert np.allclose(traj[0], odom[0])
+    graph = slam.pose_graph()
+    assert graph.num_vertices == slam.num_keyframes >= 10
+    assert graph.num_edges == slam.num_keyframes - 1  # no loop in a fifth of a lap
+    grid = slam.occupancy_grid()
+    occupied = grid.states() == 100
+    assert occupied.sum() > 100
+    # The map is in the odom frame of the first scan: true walls moved by the start's odometry offset.
+    assert grid.contains(*compose(odom[0], relative(truth[0], (10.0, 0.0, 0.0)))[:2])
+
+
+def test_bad_input_is_a_typed_error() -> None:
+    slam = GraphSlam()
+    with pytest.raises(SlamError):
+        slam.update(0.0, (0.0, 0.0), [1.0, 2.0], [0.0, 0.1], range_min_m=0.1, range_max_m=10.0)
+    with pytest.raises(SlamError):
+        slam.update(0.0, (0.0, 0.0, 0.0), [1.0, 2.0], [0.0], range_min_m=0.1, range_max_m=10.0)
+    with pytest.raises(SlamError):
+        slam.update(0.0, (0.0, 0.0, 0.0), [1.0], [0.0], range_min_m=5.0, range_max_m=1.0)
+    with pytest.raises(SlamError):
+        slam.occupancy_grid()
+    with pytest.raises(SlamError):
+        SlamConfig(match_window_m=-1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_localization_converges_from_half_a_metre_and_twenty_degrees(seed: int) -> None:
+    grid = true_map()
+    loc = Localizer(grid)
+    truth = ring_drive(0.3, 0.5, 0.1)[:20]  # 2 s of driving at 10 Hz
+    rng = np.random.default_rng(seed)
+    angles, ranges = scans(truth, rng)
+    odom = corrupt_odometry(truth, rng)
+    phi = rng.uniform(-math.pi, math.pi)
+    sign = 1.0 if rng.uniform() < 0.5 else -1.0
+    start = truth[0] + np.array([0.5 * math.cos(phi), 0.5 * math.sin(phi), sign * math.radians(20.0)])
+    with pytest.raises(SlamError):
+        loc.update(odom[0], ranges[0], angles, range_min_m=0.1, range_max_m=12.0)
+    loc.set_pose(start, np.diag([0.25, 0.25, 0.0685]))  # RViz's 2D Pose Estimate covariance
+    for k in range(truth.shape[0]):
+        est = loc.update(odom[k], ranges[k], angles, range_min_m=0.1, range_max_m=12.0)
+    err = relative(truth[-1], est.pose)
+    assert math.hypot(err[0], err[1]) <= 0.05
+    assert abs(math.degrees(err[2])) <= 1.0
+    assert est.matched
+    assert np.allclose(compose(loc.map_to_odom(), odom[-1]), est.pose)
+
+
+def test_localizer_needs_walls() -> None:
+    from mjnav.mapping import OccupancyGrid
+
+    with pytest.raises(SlamError):
+        Localizer(OccupancyGrid(10, 10, 0.1))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Kümmerle et al.'s metric and the odometry noise
+
+
+def test_relative_pose_error_by_hand() -> None:
+    # Reference: three poses 1 m apart along x. Estimate: the second pose 0.1 m too far in y and turned 2°.
+    ref = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    est = ref.copy()
+    est[1] = (1.0, 0.1, math.radians(2.0))
+    e = relative_pose_error(est, ref, consecutive_relations(3))
+    # Relation (0,1): δ = (1, 0.1, 2°) vs δ* = (1, 0, 0) → error (0, 0.1, 2°): 0.1 m, 2°.
+    # Relation (1,2): δ = est1⁻¹·(2, 0, 0); δ*⁻¹·δ has translation length |R(−2°)·(1, −0.1) − (1, 0)| and −2°.
+    c, s = math.cos(math.radians(2.0)), math.sin(math.radians(2.0))
+    t2 = math.hypot(c * 1.0 + s * -0.1 - 1.0, -s * 1.0 + c * -0.1)
+    assert e.relations == 2
+    assert e.trans_errors_m == pytest.approx([0.1, t2], abs=1e-12)
+    assert e.rot_errors_deg == pytest.approx([2.0, 2.0], abs=1e-12)
+    assert e.trans_mean_m == pytest.approx((0.1 + t2) / 2)
+    assert e.trans_std_m == pytest.approx(abs(0.1 - t2) / 2)
+    assert e.rot_std_deg == pytest.approx(0.0, abs=1e-12)
+    # The metric ignores the global frame: moving the whole estimate changes nothing.
+    moved = compose(np.array([3.0, -1.0, 0.7]), est)
+    assert relative_pose_error(moved, ref, consecutive_relations(3)).trans_mean_m == pytest.approx(e.trans_mean_m)
+
+
+def test_relations() -> None:
+    ref = np.column_stack((np.arange(6) * 0.4, np.zeros(6), np.zeros(6)))
+    assert distance_relations(ref, 1.0).tolist() == [[0, 3], [1, 4], [2, 5]]
+    assert consecutive_relations(3).tolist() == [[0, 1], [1, 2]]
+    with pytest.raises(SlamError):
+        relative_pose_error(ref, ref[:3], consecutive_relations(3))
+    with pytest.raises(SlamError):
+        relative_pose_error(ref, ref, np.array([[0, 9]]))
+
+
+def test_odometry_noise_is_seeded_and_grows_like_a_random_walk() -> None:
+    ref = np.column_stack((np.linspace(0.0, 100.0, 1001), np.zeros(1001), np.zeros(1001)))
+    a = corrupt_odometry(ref, np.random.default_rng(3))
+    assert np.array_equal(a, corrupt_odometry(ref, np.random.default_rng(3)))
+    assert np.array_equal(corrupt_odometry(ref, np.random.default_rng(3), (0.0, 0.0, 0.0)), ref)
+    # σ_b = 0.02 rad/√m: the heading after 100 m has σ = 0.2 rad; over 400 seeded runs the spread matches.
+    ends = np.array([corrupt_odometry(ref, np.random.default_rng(s))[-1, 2] for s in range(400)])
+    assert np.std(ends) == pytest.approx(0.2, rel=0.15)
+    assert np.allclose(invert(invert(a[5])), a[5])
