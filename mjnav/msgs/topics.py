@@ -187,6 +187,53 @@ TOPICS: dict[str, Topic] = {
             per_service=True,
             express=True,
         ),
+        # The UAV stack (namespace uav0): uav_sim -> ins -> flight_controller -> uav_sim. It also uses clock, imu
+        # (250 Hz, body FLU, orientation = the AHRS attitude in ENU), ground_truth (3-D pose), sim_status, status
+        # and lockstep.
+        Topic("gps", "sensor_msgs/msg/NavSatFix", _S, "uav_sim", "5 Hz", "GPS fix (WGS84), stamped when taken"),
+        Topic("baro", "sensor_msgs/msg/FluidPressure", _S, "uav_sim", "20 Hz", "Barometric static pressure, Pa"),
+        Topic(
+            "mocap",
+            "nav_msgs/msg/Odometry",
+            _S,
+            "uav_sim",
+            "50 Hz",
+            "Motion capture (true pose and twist, ENU `map` → FLU `base_link`), standing for VICON",
+        ),
+        Topic(
+            "ins_odom",
+            "nav_msgs/msg/Odometry",
+            _S,
+            "ins",
+            "50 Hz",
+            "GPS/INS estimate in a local ENU (`map`, REP-103) or NED (`map_ned`) frame, with covariance",
+        ),
+        Topic(
+            "rotor_cmd",
+            "sensor_msgs/msg/JointState",
+            _S,
+            "flight_controller",
+            "50 Hz",
+            "Rotor speed commands `rotor0..3` (velocity, rad/s, PX4 quad-X order)",
+        ),
+        Topic("setpoint", "geometry_msgs/msg/PoseStamped", _S, "user", ">= 2 Hz", "UAV position/yaw setpoint (ENU)"),
+        Topic(
+            "trajectory",
+            "nav_msgs/msg/Path",
+            _S,
+            "user",
+            ">= 2 Hz",
+            "UAV trajectory: poses stamped with the sim time they are due (ENU)",
+        ),
+        Topic("arm", "std_msgs/msg/Bool", _E, "user", "on request", "Arm (true) or land and disarm (false)"),
+        Topic(
+            "flight_state",
+            "std_msgs/msg/String",
+            _S,
+            "flight_controller",
+            "10 Hz + on change",
+            "disarmed, armed, offboard, landing, failsafe_land",
+        ),
     )
 }
 
