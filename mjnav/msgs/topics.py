@@ -188,7 +188,7 @@ TOPICS: dict[str, Topic] = {
             express=True,
         ),
         # The UAV stack (namespace uav0): uav_sim -> ins -> flight_controller -> uav_sim. It also uses clock, imu
-        # (250 Hz, body FLU, orientation = the AHRS attitude in ENU), ground_truth (3-D pose), sim_status, status
+        # (100 Hz, body FLU, mean specific force over the period, orientation = the AHRS attitude in ENU), ground_truth (3-D pose), sim_status, status
         # and lockstep.
         Topic("gps", "sensor_msgs/msg/NavSatFix", _S, "uav_sim", "5 Hz", "GPS fix (WGS84), stamped when taken"),
         Topic("baro", "sensor_msgs/msg/FluidPressure", _S, "uav_sim", "20 Hz", "Barometric static pressure, Pa"),
@@ -205,7 +205,7 @@ TOPICS: dict[str, Topic] = {
             "nav_msgs/msg/Odometry",
             _S,
             "ins",
-            "50 Hz",
+            "25 Hz",
             "GPS/INS estimate in a local ENU (`map`, REP-103) or NED (`map_ned`) frame, with covariance",
         ),
         Topic(

@@ -69,23 +69,34 @@ def _takeoff(pad: np.ndarray, altitude_m: float, t0: float, climb_s: float) -> C
     return ref
 
 
-def figure8_plan(pad: Any, t0: float, periods: int = 3, period_s: float = 8.0, altitude_m: float = 1.5) -> FlightPlan:
-    """Take off at ``t0`` (3 s climb, 2 s hover), then ``x = sin(2πτ/T)``, ``y = 0.5 sin(4πτ/T)``, z = 1.5 m for
-    ``periods`` periods (τ from the end of the hover), centred on the pad; the periods are scored."""
+def figure8_plan(
+    pad: Any, t0: float, periods: int = 3, period_s: float = 8.0, altitude_m: float = 1.5, lead_in_s: float = 2.0
+) -> FlightPlan:
+    """Take off at ``t0`` (3 s climb, 2 s hover), then ``x = sin(2πτ/T)``, ``y = 0.5 sin(4πτ/T)``, z = 1.5 m,
+    centred on the pad. The figure's time τ speeds up smoothly from rest over a ``lead_in_s`` lead-in
+    (``dτ/dt`` from 0 to 1, quintic: the formula starts at full speed), then runs ``periods`` full periods, which are
+    scored, and comes to rest the same way."""
     p = np.asarray(pad, dtype=np.float64)
     climb = _takeoff(p, altitude_m, t0, 3.0)
     t1 = t0 + 5.0
-    t2 = t1 + periods * period_s
+    t2 = t1 + lead_in_s  # scored from here ...
+    t3 = t2 + periods * period_s  # ... to here
+    t4 = t3 + lead_in_s
+
+    def warp(u: np.ndarray) -> np.ndarray:  # ∫₀ᵘ smoothstep: 2.5u⁴ - 3u⁵ + u⁶
+        u = np.clip(u, 0.0, 1.0)
+        return u**4 * (2.5 - 3.0 * u + u * u)
 
     def ref(t: np.ndarray) -> np.ndarray:
         out = climb(t)
-        tau = np.clip(t - t1, 0.0, t2 - t1)
+        tau = lead_in_s * warp((t - t1) / lead_in_s) + np.clip(t - t2, 0.0, t3 - t2)
+        tau += lead_in_s * (0.5 - warp(1.0 - (t - t3) / lead_in_s)) * (t > t3)
         fly = t > t1
         out[fly, 0] = p[0] + np.sin(2.0 * math.pi * tau[fly] / period_s)
         out[fly, 1] = p[1] + 0.5 * np.sin(4.0 * math.pi * tau[fly] / period_s)
         return out
 
-    return FlightPlan("figure8", ref, t0, t2 + 1.0, t1, t2)
+    return FlightPlan("figure8", ref, t0, t4 + 1.0, t2, t3)
 
 
 def hover_plan(pad: Any, t0: float, hover_s: float = 10.0, altitude_m: float = 1.5) -> FlightPlan:

@@ -119,8 +119,6 @@ class FlightControllerService(Service[FlightControllerConfig]):
             CascadeGains,
             QuadrotorParams,
             RptController,
-            Scheduler,
-            Task,
             rpt_gains,
         )
         from mjnav.aerial.outer import hinf_outer_gains, lqr_outer_gains
@@ -140,28 +138,10 @@ class FlightControllerService(Service[FlightControllerConfig]):
             outer=None if outer_gains is None else RptController(outer_gains(), accel_limit=cfg.accel_limit_mps2),
         )
         self.ctl = self._make_controller()  # raises LoopSeparationError for an outer loop too fast
-        base = cfg.rate_hz
-        table = [
-            Task("EST", base, 200.0, 5),
-            Task("CTL", base, 1000.0, 4),
-            Task("SVO", base, 100.0, 3),
-            Task("NET", base, 500.0, 2),
-            Task("DLG", min(cfg.status_rate_hz, base), 500.0, 1),
-        ]
-        self.scheduler = Scheduler(
-            table,
-            base_rate_hz=base,
-            handlers={
-                "EST": self._timed(self._estimate),
-                "CTL": self._timed(self._control),
-                "SVO": self._timed(self._servo),
-                "NET": self._timed(self._network),
-                "DLG": self._timed(self._log_state),
-            },
-        )
         state_topic = "mocap" if cfg.state_source == "mocap" else "ins_odom"
         self.state_sub = self.bus.subscribe(state_topic)
-        self.imu_sub = self.bus.subscribe("imu")
+        # mocap carries attitude and rates; with the INS they come from the newest IMU sample
+        self.imu_sub = self.bus.subscribe("imu") if cfg.state_source == "ins" else None
         self.setpoint_sub = self.bus.subscribe("setpoint")
         self.trajectory_sub = self.bus.subscribe("trajectory")
         self.arm_sub = self.bus.subscribe("arm")
@@ -178,6 +158,27 @@ class FlightControllerService(Service[FlightControllerConfig]):
         return run
 
     def activate(self) -> None:
+        from mjnav.aerial import Scheduler, Task
+
+        base = self.config.rate_hz
+        table = [
+            Task("EST", base, 200.0, 5),
+            Task("CTL", base, 1000.0, 4),
+            Task("SVO", base, 100.0, 3),
+            Task("NET", base, 500.0, 2),
+            Task("DLG", min(self.config.status_rate_hz, base), 500.0, 1),
+        ]
+        self.scheduler = Scheduler(
+            table,
+            base_rate_hz=base,
+            handlers={
+                "EST": self._timed(self._estimate),
+                "CTL": self._timed(self._control),
+                "SVO": self._timed(self._servo),
+                "NET": self._timed(self._network),
+                "DLG": self._timed(self._log_state),
+            },
+        )
         self.state = "disarmed"
         self._published_state = ""
         self.x: np.ndarray | None = None  # (17,) NED state estimate
@@ -211,7 +212,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
             ned = msg.header.frame_id == "map_ned"
             p, v = (pos, vel) if ned else (enu_to_ned(pos), enu_to_ned(vel))
             x[0:3], x[3:6] = p + v * max(0.0, now - stamp), v
-            imu = self.imu_sub.latest()
+            imu = None if self.imu_sub is None else self.imu_sub.latest()
             if imu is None:
                 return
             o, w = imu.orientation, imu.angular_velocity

@@ -38,8 +38,8 @@ class InsConfig:
         gravity_mps2: gravity removed from the specific force, m/s².
     """
 
-    rate_hz: float = 50.0
-    imu_rate_hz: float = 250.0
+    rate_hz: float = 25.0
+    imu_rate_hz: float = 100.0
     accel_noise_mps2: float = 0.02
     accel_bias_walk_mps2_per_sqrt_s: float = 1e-3
     gps_sigma_m: float = 1.0

@@ -57,7 +57,7 @@ class UavSimConfig:
     rtf: float = 1.0
     rate_hz: float = 100.0
     clock_rate_hz: float = 50.0
-    imu_rate_hz: float = 250.0
+    imu_rate_hz: float = 100.0
     gps_rate_hz: float = 5.0
     gps_delay_s: float = 0.15
     baro_rate_hz: float = 25.0

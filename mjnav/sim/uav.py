@@ -10,8 +10,9 @@ World frame ENU (MuJoCo z up), body FLU; the flight software's NED / FRD convers
 * **Wind** (:class:`Wind`, seeded): a mean wind of ``mean_mps`` from a random heading plus "1 − cos" gusts of peak
   ``gust_mps`` (1–3 s long, random horizontal direction, starting on average every 3 s). The vehicle feels the
   quadratic drag ``½ ρ C_dA |w − v| (w − v)`` at its centre of mass.
-* **Sensors** (one seeded ``numpy.random.Generator``, drawn in call order): IMU specific force and rate (FLU) with
-  white noise and a constant accelerometer bias, attitude from the frame-orientation sensor with white noise
+* **Sensors** (one seeded ``numpy.random.Generator``, drawn in call order): IMU specific force (the mean over the
+  last step call, from the change of velocity: a delta-velocity IMU) and rate (FLU) with white noise and a constant
+  accelerometer bias, attitude from the frame-orientation sensor with white noise
   (the AHRS output); GPS (WGS84 latitude/longitude/altitude of the true position about a geodetic origin, white
   noise per axis); barometric pressure (ISA troposphere, white noise).
 """
@@ -245,6 +246,8 @@ class UavSimulator:
         self.rotor_speed_cmd = np.zeros(4)
         self.collisions = 0
         self._touching = False
+        self._v_before: np.ndarray | None = None
+        self._t_before = 0.0
         mujoco.mj_forward(m, self.data)
 
     @property
@@ -276,6 +279,8 @@ class UavSimulator:
         v = d.qvel[self._qvel : self._qvel + 3]
         rel = self.wind.velocity(self.time_s) - v
         d.xfrc_applied[self.body_id, 0:3] = 0.5 * RHO_AIR * self.drag_area_m2 * float(np.linalg.norm(rel)) * rel
+        self._v_before = d.qvel[self._qvel : self._qvel + 3].copy()
+        self._t_before = self.time_s
         mujoco.mj_step(self.model, d, nstep=n)
         touching = self._touches_obstacle()
         if touching and not self._touching:
@@ -299,10 +304,21 @@ class UavSimulator:
         return UavTruth(q[0:3].copy(), q[3:7].copy(), v[0:3].copy(), v[3:6].copy())
 
     def imu(self) -> ImuReading:
-        """Noisy IMU sample now (specific force with bias, rate, attitude), body FLU."""
+        """Noisy IMU sample now (specific force with bias, rate, attitude), body FLU.
+
+        The specific force is the mean over the last :meth:`step` call — from the change of velocity, like the
+        delta-velocity output of a real IMU — so a filter predicting at the sample rate integrates the true
+        motion; before the first step it is the accelerometer sensor's reading.
+        """
         d, n, s = self.data, self.noise, self._sensor
-        acc = d.sensordata[s["imu_accel"] : s["imu_accel"] + 3] + self.accel_bias
-        acc = acc + self.rng.normal(size=3) * n.accel_mps2
+        if self._v_before is None:
+            acc = d.sensordata[s["imu_accel"] : s["imu_accel"] + 3].copy()
+        else:
+            dt = self.time_s - self._t_before
+            mean_world = (d.qvel[self._qvel : self._qvel + 3] - self._v_before) / dt - self.model.opt.gravity
+            xmat = d.xmat[self.body_id].reshape(3, 3)  # body → world
+            acc = xmat.T @ mean_world
+        acc = acc + self.accel_bias + self.rng.normal(size=3) * n.accel_mps2
         gyro = d.sensordata[s["imu_gyro"] : s["imu_gyro"] + 3] + self.rng.normal(size=3) * n.gyro_radps
         w, x, y, z = d.sensordata[s["imu_quat"] : s["imu_quat"] + 4]
         half = 0.5 * self.rng.normal(size=3) * n.attitude_rad  # small body-frame rotation error
