@@ -190,7 +190,7 @@ TOPICS: dict[str, Topic] = {
         # The UAV stack (namespace uav0): uav_sim -> ins -> flight_controller -> uav_sim. It also uses clock, imu
         # (100 Hz, body FLU, mean specific force over the period, orientation = the AHRS attitude in ENU), ground_truth (3-D pose), sim_status, status
         # and lockstep.
-        Topic("gps", "sensor_msgs/msg/NavSatFix", _S, "uav_sim", "5 Hz", "GPS fix (WGS84), stamped when taken"),
+        Topic("gps", "sensor_msgs/msg/NavSatFix", _S, "uav_sim", "10 Hz", "GPS fix (WGS84), stamped when taken"),
         Topic("baro", "sensor_msgs/msg/FluidPressure", _S, "uav_sim", "20 Hz", "Barometric static pressure, Pa"),
         Topic(
             "mocap",

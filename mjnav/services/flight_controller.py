@@ -244,7 +244,12 @@ class FlightControllerService(Service[FlightControllerConfig]):
             descending = pos[2] < self.home_d + 0.5
             vel = np.array([0.0, 0.0, cfg.land_speed_mps if descending else 0.0])
             acc, yaw = np.zeros(3), self._land_yaw
-            if self.home_d - x[2] < cfg.touchdown_height_m and abs(x[5]) < 0.1 and now - t0 > 0.5:
+            # landed: near the arming height, or (an estimate that drifted) the descent setpoint is already at the
+            # ground and the vehicle has not moved vertically for a second
+            still = abs(x[5]) < 0.1 and pos[2] >= self.home_d
+            self._still_since = (self._still_since if self._still_since is not None else now) if still else None
+            near = self.home_d - x[2] < cfg.touchdown_height_m and abs(x[5]) < 0.1 and now - t0 > 0.5
+            if near or (self._still_since is not None and now - self._still_since >= 1.0):
                 self._set_state("disarmed", now)
                 self.command = np.zeros(4)
                 return
@@ -302,6 +307,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
     def _start_landing(self, state: str, now: float) -> None:
         assert self.x is not None
         self._land_start = (now, self.x[0:3].copy())
+        self._still_since: float | None = None
         from mjnav.aerial import euler_from_quat
 
         self._land_yaw = float(euler_from_quat(self.x[6:10])[2])

@@ -132,6 +132,7 @@ class InsService(Service[InsConfig]):
                 x0[0:3] = p0
                 self.ins = self._make_filter(self._filter_config, x0=x0, t0_s=t)
                 fixes = fixes[1:]
+                continue  # the filter starts at this sample's time; the next sample propagates it
             acc = quat_to_rotation(q) @ f_frd
             acc[2] += cfg.gravity_mps2
             self.ins.predict(acc)

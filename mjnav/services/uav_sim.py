@@ -58,7 +58,7 @@ class UavSimConfig:
     rate_hz: float = 100.0
     clock_rate_hz: float = 50.0
     imu_rate_hz: float = 100.0
-    gps_rate_hz: float = 5.0
+    gps_rate_hz: float = 10.0
     gps_delay_s: float = 0.15
     baro_rate_hz: float = 25.0
     mocap_rate_hz: float = 50.0

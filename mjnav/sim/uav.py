@@ -8,7 +8,7 @@ World frame ENU (MuJoCo z up), body FLU; the flight software's NED / FRD convers
   the rotor thrust ``k_f ω²`` (N, clipped to the rotor's maximum); the actuator's first-order filter (20 ms) is the
   motor lag, its gear adds the reaction torque (see the MJCF).
 * **Wind** (:class:`Wind`, seeded): a mean wind of ``mean_mps`` from a random heading plus "1 − cos" gusts of peak
-  ``gust_mps`` (1–3 s long, random horizontal direction, starting on average every 3 s). The vehicle feels the
+  ``gust_mps`` (1–3 s long, random horizontal direction, one at a time, a pause of 3 s on average between them). The vehicle feels the
   quadratic drag ``½ ρ C_dA |w − v| (w − v)`` at its centre of mass.
 * **Sensors** (one seeded ``numpy.random.Generator``, drawn in call order): IMU specific force (the mean over the
   last step call, from the change of velocity: a delta-velocity IMU) and rate (FLU) with white noise and a constant
@@ -117,7 +117,7 @@ class Wind:
         gust_mps: peak gust speed added on top, m/s (0: no gusts).
         rng: the generator the heading and the gust schedule are drawn from.
         horizon_s: how long a schedule to draw, s (no gusts after it).
-        mean_interval_s: mean time between gust starts, s.
+        mean_interval_s: mean pause between the end of a gust and the start of the next, s.
     """
 
     def __init__(
@@ -143,6 +143,7 @@ class Wind:
             durations.append(rng.uniform(1.0, 3.0))
             a = rng.uniform(0.0, 2.0 * math.pi)
             dirs.append((math.cos(a), math.sin(a), 0.0))
+            t += durations[-1]  # gusts never overlap: each peaks at gust_mps
         self._start = np.array(starts)
         self._dur = np.array(durations)
         self._dir = np.array(dirs).reshape(-1, 3)
