@@ -244,10 +244,12 @@ class FlightControllerService(Service[FlightControllerConfig]):
             descending = pos[2] < self.home_d + 0.5
             vel = np.array([0.0, 0.0, cfg.land_speed_mps if descending else 0.0])
             acc, yaw = np.zeros(3), self._land_yaw
-            # landed: near the arming height, or (an estimate that drifted) the descent setpoint is already at the
-            # ground and the vehicle has not moved vertically for a second
-            still = abs(x[5]) < 0.1 and pos[2] >= self.home_d
-            self._still_since = (self._still_since if self._still_since is not None else now) if still else None
+            # landed (PX4's land detector in short): near the arming height and still, or — when the estimate
+            # drifted — the descent setpoint is at the ground and for a second the thrust has stayed below 60 % of
+            # hover (the ground carries the vehicle) without a fast vertical motion
+            pressed = pos[2] >= self.home_d and self.ctl.thrust_sp_n < 0.6 * self.params.hover_thrust_n
+            on_ground = pressed and abs(x[5]) < 0.5
+            self._still_since = (self._still_since if self._still_since is not None else now) if on_ground else None
             near = self.home_d - x[2] < cfg.touchdown_height_m and abs(x[5]) < 0.1 and now - t0 > 0.5
             if near or (self._still_since is not None and now - self._still_since >= 1.0):
                 self._set_state("disarmed", now)
