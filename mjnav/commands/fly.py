@@ -54,7 +54,9 @@ def register(sub: Any) -> None:
         metavar="FACTOR|max",
         help="at most FACTOR x real time, or max: as fast as the services allow (default 1)",
     )
-    p.add_argument("--record", nargs="?", const="", metavar="MP4", help="record a chase-camera video (default DIR/fly.mp4)")
+    p.add_argument(
+        "--record", nargs="?", const="", metavar="MP4", help="record a chase-camera video (default DIR/fly.mp4)"
+    )
     p.add_argument("--out", metavar="DIR", help="write summary.json (and the video) here")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on the last stdout line")
     p.add_argument("--world", default="field", help="UAV scene of mjcf/uav/ or an MJCF path (default field)")
@@ -115,8 +117,15 @@ def run(args: argparse.Namespace) -> int:
                 f"wind_mps={args.wind}",
                 f"gust_mps={args.gust}",
             ],
-            "flight_controller": [f"controller={json.dumps(args.controller)}", f"state_source={json.dumps(args.state)}"],
+            "flight_controller": [
+                f"controller={json.dumps(args.controller)}",
+                f"state_source={json.dumps(args.state)}",
+            ],
         }
+        if "uav_viz" in stack.names():
+            overrides["uav_viz"] = [f"world={json.dumps(str(sim.path))}"]
+            if out is not None:
+                overrides["uav_viz"].append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
         if args.record is not None:
             video = Path(args.record) if args.record else (out / "fly.mp4" if out else None)
             if video is None:

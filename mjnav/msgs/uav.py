@@ -31,6 +31,8 @@ _Bool = _types["std_msgs/msg/Bool"]
 _String = _types["std_msgs/msg/String"]
 _ZERO36 = np.zeros(36)
 _ZERO36.setflags(write=False)
+#: sensor_msgs/NavSatStatus STATUS_FIX, SERVICE_GPS and NavSatFix COVARIANCE_TYPE_DIAGONAL_KNOWN.
+_STATUS_FIX, _SERVICE_GPS, _COVARIANCE_DIAGONAL_KNOWN = 0, 1, 2
 
 
 def pose3d_msg(position_m: Any, quat_wxyz: Any) -> Any:
@@ -116,12 +118,12 @@ def nav_sat_fix(t_s: float, lat_deg: float, lon_deg: float, alt_m: float, sigma_
     """sensor_msgs/NavSatFix (GPS service, status FIX) with a diagonal covariance of ``sigma_m``² per axis."""
     return _NavSatFix(
         header=header(t_s, "gps"),
-        status=_NavSatStatus(status=_NavSatStatus.STATUS_FIX, service=_NavSatStatus.SERVICE_GPS),
+        status=_NavSatStatus(status=_STATUS_FIX, service=_SERVICE_GPS),
         latitude=float(lat_deg),
         longitude=float(lon_deg),
         altitude=float(alt_m),
         position_covariance=np.diag([sigma_m**2] * 3).reshape(9).astype(np.float64),
-        position_covariance_type=_NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN,
+        position_covariance_type=_COVARIANCE_DIAGONAL_KNOWN,
     )
 
 

@@ -13,6 +13,7 @@ trajectory, then a landing. `figure8_plan`, `hover_plan` and `waypoints_plan` bu
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 import time
@@ -120,7 +121,7 @@ def waypoints_plan(pad: Any, t0: float, waypoints: Any, speed_mps: float = 1.0, 
     points = [np.array([p[0], p[1], altitude_m]), *wps]
     legs = []  # (t_start, t_end, from, to)
     t = t1
-    for a, b in zip(points[:-1], points[1:], strict=True):
+    for a, b in itertools.pairwise(points):
         dur = max(1.0, 1.875 * float(np.linalg.norm(b - a)) / speed_mps)  # quintic peak speed = 1.875 x average
         legs.append((t, t + dur, a, b))
         t += dur + 1.0

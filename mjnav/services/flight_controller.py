@@ -188,6 +188,8 @@ class FlightControllerService(Service[FlightControllerConfig]):
         self.home_d = math.nan  # NED down of the arming position
         self.command = np.zeros(4)
         self._land_start: tuple[float, np.ndarray] | None = None
+        self._land_yaw = 0.0
+        self._still_since: float | None = None  # since when the vehicle sits on the ground while landing
         self._now = 0.0
         self.ctl.reset()
 
@@ -288,9 +290,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
             self.ctl.reset()
             self._set_state("offboard", now)
         elif self.state == "offboard" and now - self.last_setpoint_t >= self.config.setpoint_timeout_s - 1e-9:
-            self.log.warning(
-                "no setpoint for %.2f s of sim time: failsafe, landing", now - self.last_setpoint_t
-            )
+            self.log.warning("no setpoint for %.2f s of sim time: failsafe, landing", now - self.last_setpoint_t)
             self._start_landing("failsafe_land", now)
 
     def _on_arm(self, arm: bool, now: float) -> None:
@@ -309,7 +309,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
     def _start_landing(self, state: str, now: float) -> None:
         assert self.x is not None
         self._land_start = (now, self.x[0:3].copy())
-        self._still_since: float | None = None
+        self._still_since = None
         from mjnav.aerial import euler_from_quat
 
         self._land_yaw = float(euler_from_quat(self.x[6:10])[2])

@@ -121,8 +121,7 @@ class UavBridge:
         self.recorder = recorder
         self._cmd = bus.subscribe("rotor_cmd")
         self._pub = {
-            name: bus.publisher(name)
-            for name in ("clock", "imu", "gps", "baro", "mocap", "ground_truth", "sim_status")
+            name: bus.publisher(name) for name in ("clock", "imu", "gps", "baro", "mocap", "ground_truth", "sim_status")
         }
         self._clock = _Every(config.clock_rate_hz)
         self._gps = _Every(config.gps_rate_hz)

@@ -8,8 +8,8 @@ World frame ENU (MuJoCo z up), body FLU; the flight software's NED / FRD convers
   the rotor thrust ``k_f ω²`` (N, clipped to the rotor's maximum); the actuator's first-order filter (20 ms) is the
   motor lag, its gear adds the reaction torque (see the MJCF).
 * **Wind** (:class:`Wind`, seeded): a mean wind of ``mean_mps`` from a random heading plus "1 − cos" gusts of peak
-  ``gust_mps`` (1–3 s long, random horizontal direction, one at a time, a pause of 3 s on average between them). The vehicle feels the
-  quadratic drag ``½ ρ C_dA |w − v| (w − v)`` at its centre of mass.
+  ``gust_mps`` (1–3 s long, random horizontal direction, one at a time, a pause of 3 s on average between them).
+  The vehicle feels the quadratic drag ``½ ρ C_dA |w − v| (w − v)`` at its centre of mass.
 * **Sensors** (one seeded ``numpy.random.Generator``, drawn in call order): IMU specific force (the mean over the
   last step call, from the change of velocity: a delta-velocity IMU) and rate (FLU) with white noise and a constant
   accelerometer bias, attitude from the frame-orientation sensor with white noise
