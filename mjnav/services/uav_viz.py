@@ -2,8 +2,8 @@
 
 Runs on wall time (not a lockstep participant, so it never holds sim time back): at ``rate_hz`` it moves the
 vehicle along every ``ground_truth`` received since (extending the flown trail) and adds every received
-``trajectory`` to the drawn reference. The meshcat server binds to ``host`` (loopback by default); with ``static_html`` set, the scene is
-written there as a self-contained HTML snapshot when the service stops.
+``trajectory`` to the drawn reference. The meshcat server binds to ``host`` (loopback by default); with
+``static_html`` set, the scene is written there as a self-contained HTML snapshot when the service stops.
 """
 
 from __future__ import annotations

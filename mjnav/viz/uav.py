@@ -17,11 +17,13 @@ import mujoco
 import numpy as np
 
 from mjnav.viz.layers import pose_msg_matrix
-from mjnav.viz.model import VisualGeom, _rgba, _SHAPES, homogeneous
+from mjnav.viz.model import _SHAPES, VisualGeom, _rgba, homogeneous
 from mjnav.viz.scene import Scene
 from mjnav.viz.view import geom_objects
 
 ROOT = "/mjnav_uav"
+#: Trail points per drawn line object: finished chunks stay, only the newest is redrawn (cost independent of length).
+TRAIL_CHUNK = 200
 REFERENCE_COLOUR = 0x1F77B4
 TRAIL_COLOUR = 0xD62728
 
@@ -78,7 +80,8 @@ class UavView:
     def __init__(self, scene: Scene, trail_spacing_m: float = 0.02) -> None:
         self.scene = scene
         self.trail_spacing_m = trail_spacing_m
-        self.trail: list[np.ndarray] = []
+        self.trail: list[np.ndarray] = []  # the newest chunk of the trail
+        self._trail_chunks = 0
         self.reference: dict[int, np.ndarray] = {}  # stamp (ns) -> position
         self.drawn: dict[str, int] = {}
 
@@ -110,8 +113,12 @@ class UavView:
         p = m[:3, 3].copy()
         if not self.trail or np.linalg.norm(p - self.trail[-1]) >= self.trail_spacing_m:
             self.trail.append(p)
-            if redraw_trail and len(self.trail) >= 2:
-                self._line("trail", np.array(self.trail), TRAIL_COLOUR)
+            if len(self.trail) > TRAIL_CHUNK:  # freeze the full chunk; the next one starts at its last point
+                self._line(f"trail/{self._trail_chunks}", np.array(self.trail), TRAIL_COLOUR)
+                self._trail_chunks += 1
+                self.trail = self.trail[-1:]
+            elif redraw_trail and len(self.trail) >= 2:
+                self._line(f"trail/{self._trail_chunks}", np.array(self.trail), TRAIL_COLOUR)
         self._count("uav")
 
     def add_trajectory(self, path_msg: Any) -> None:
