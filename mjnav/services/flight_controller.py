@@ -138,6 +138,12 @@ class FlightControllerService(Service[FlightControllerConfig]):
             outer=None if outer_gains is None else RptController(outer_gains(), accel_limit=cfg.accel_limit_mps2),
         )
         self.ctl = self._make_controller()  # raises LoopSeparationError for an outer loop too fast
+        # warm the compiled kernels (conversions, controller) now rather than at the first step in flight
+        from mjnav.aerial import hover_state
+        from mjnav.aerial.rep103 import quat_enu_flu_to_ned_frd
+
+        quat_enu_flu_to_ned_frd([1.0, 0.0, 0.0, 0.0])
+        self.ctl.update(hover_state(self.params), np.zeros(3), 0.0, 1.0 / cfg.rate_hz)
         state_topic = "mocap" if cfg.state_source == "mocap" else "ins_odom"
         self.state_sub = self.bus.subscribe(state_topic)
         # mocap carries attitude and rates; with the INS they come from the newest IMU sample

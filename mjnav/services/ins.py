@@ -77,6 +77,7 @@ class InsService(Service[InsConfig]):
             init_pos_sigma_m=cfg.gps_sigma_m,
         )
         self._make_filter = GpsIns
+        self._origin = (cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m)
         self._lock = threading.Lock()
         self._imu: list[Any] = []
         self._fixes: list[Any] = []
@@ -87,6 +88,11 @@ class InsService(Service[InsConfig]):
         warm = GpsIns(self._filter_config)
         warm.predict(np.zeros(3))
         warm.update_gps(np.zeros(3))
+        from mjnav.aerial import geodetic_to_ned
+        from mjnav.aerial.rep103 import quat_enu_flu_to_ned_frd
+
+        quat_enu_flu_to_ned_frd([1.0, 0.0, 0.0, 0.0])
+        geodetic_to_ned(cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m, *self._origin)
 
     def activate(self) -> None:
         self.ins: Any = None

@@ -250,6 +250,8 @@ class UavSimulator:
         self._v_before: np.ndarray | None = None
         self._t_before = 0.0
         mujoco.mj_forward(m, self.data)
+        o = self.origin
+        enu_to_geodetic(0.0, 0.0, 0.0, o.lat_deg, o.lon_deg, o.alt_m)  # load the compiled kernel now, not mid-flight
 
     @property
     def time_s(self) -> float:
@@ -319,11 +321,12 @@ class UavSimulator:
             mean_world = (d.qvel[self._qvel : self._qvel + 3] - self._v_before) / dt - self.model.opt.gravity
             xmat = d.xmat[self.body_id].reshape(3, 3)  # body → world
             acc = xmat.T @ mean_world
-        acc = acc + self.accel_bias + self.rng.normal(size=3) * n.accel_mps2
-        gyro = d.sensordata[s["imu_gyro"] : s["imu_gyro"] + 3] + self.rng.normal(size=3) * n.gyro_radps
-        w, x, y, z = d.sensordata[s["imu_quat"] : s["imu_quat"] + 4]
-        half = 0.5 * self.rng.normal(size=3) * n.attitude_rad  # small body-frame rotation error
-        ew, ex, ey, ez = 1.0, half[0], half[1], half[2]
+        z9 = self.rng.normal(size=9)  # accelerometer, gyro, attitude noise
+        acc = acc + self.accel_bias + z9[0:3] * n.accel_mps2
+        gyro = d.sensordata[s["imu_gyro"] : s["imu_gyro"] + 3] + z9[3:6] * n.gyro_radps
+        w, x, y, z = (float(v) for v in d.sensordata[s["imu_quat"] : s["imu_quat"] + 4])
+        ha = 0.5 * n.attitude_rad  # small body-frame rotation error
+        ew, ex, ey, ez = 1.0, ha * float(z9[6]), ha * float(z9[7]), ha * float(z9[8])
         qw = w * ew - x * ex - y * ey - z * ez
         qx = w * ex + x * ew + y * ez - z * ey
         qy = w * ey - x * ez + y * ew + z * ex
