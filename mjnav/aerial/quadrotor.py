@@ -20,6 +20,7 @@ Linearised state (12,): ``[p_ned (3), v_ned (3), roll, pitch, yaw, p, q, r]`` wi
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -151,6 +152,14 @@ def mixer_matrix(params: QuadrotorParams) -> np.ndarray:
     return np.vstack([np.ones(4), -pos[:, 1], pos[:, 0], _SPIN * (params.torque_coeff / params.thrust_coeff)])
 
 
+@functools.lru_cache(maxsize=16)
+def _mixer_inverse(params: QuadrotorParams) -> np.ndarray:
+    """Inverse of `mixer_matrix` (cached per parameter set; read-only)."""
+    inv = np.linalg.inv(mixer_matrix(params))
+    inv.setflags(write=False)
+    return inv
+
+
 def mix(params: QuadrotorParams, thrust_n: float, torque_nm: np.ndarray) -> np.ndarray:
     """Rotor thrusts (4,) N for a collective thrust (N) and body torque (3,) N m, yaw given up first.
 
@@ -160,7 +169,7 @@ def mix(params: QuadrotorParams, thrust_n: float, torque_nm: np.ndarray) -> np.n
     tau = np.asarray(torque_nm, dtype=np.float64)
     if tau.shape != (3,):
         raise InvalidParameterError(f"torque_nm must have shape (3,), got {tau.shape}")
-    inv = np.linalg.inv(mixer_matrix(params))
+    inv = _mixer_inverse(params)
     base = inv @ np.array([thrust_n, tau[0], tau[1], 0.0])
     yaw = inv[:, 3] * tau[2]
     tmax = params.max_rotor_thrust_n

@@ -41,6 +41,8 @@ class Topic:
         per_service: the key carries the service name: ``<namespace>/<name>/<service>``.
         express: sent at once rather than batched (the clock and lockstep reports: each closes a lockstep round,
             and sending it flushes what its publisher batched before it).
+        stack_namespace: the namespace the shipped stacks use for it when it is not the default (``uav0`` for the
+            UAV's topics), as the README's table shows it; any namespace works on the wire.
     """
 
     name: str
@@ -51,6 +53,7 @@ class Topic:
     description: str
     per_service: bool = False
     express: bool = False
+    stack_namespace: str | None = None
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this topic in ``namespace``; per-service topics need ``service``
@@ -187,6 +190,90 @@ TOPICS: dict[str, Topic] = {
             per_service=True,
             express=True,
         ),
+        # The UAV stack (namespace uav0): uav_sim -> ins -> flight_controller -> uav_sim. It also uses clock, imu
+        # (100 Hz, body FLU, mean specific force over the period, orientation = the AHRS attitude in ENU),
+        # ground_truth (3-D pose), sim_status, status and lockstep.
+        Topic(
+            "gps",
+            "sensor_msgs/msg/NavSatFix",
+            _S,
+            "uav_sim",
+            "10 Hz",
+            "GPS fix (WGS84), stamped when taken",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "baro",
+            "sensor_msgs/msg/FluidPressure",
+            _S,
+            "uav_sim",
+            "25 Hz",
+            "Barometric static pressure, Pa",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "mocap",
+            "nav_msgs/msg/Odometry",
+            _S,
+            "uav_sim",
+            "50 Hz",
+            "Motion capture (true pose and twist, ENU `map` → FLU `base_link`), standing for VICON",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "ins_odom",
+            "nav_msgs/msg/Odometry",
+            _S,
+            "ins",
+            "25 Hz",
+            "GPS/INS estimate in a local ENU (`map`, REP-103) or NED (`map_ned`) frame, with covariance",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "rotor_cmd",
+            "sensor_msgs/msg/JointState",
+            _S,
+            "flight_controller",
+            "50 Hz",
+            "Rotor speed commands `rotor0..3` (velocity, rad/s, PX4 quad-X order)",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "setpoint",
+            "geometry_msgs/msg/PoseStamped",
+            _S,
+            "user",
+            ">= 2 Hz",
+            "UAV position/yaw setpoint (ENU)",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "trajectory",
+            "nav_msgs/msg/Path",
+            _S,
+            "user",
+            ">= 2 Hz",
+            "UAV trajectory: poses stamped with the sim time they are due (ENU)",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "arm",
+            "std_msgs/msg/Bool",
+            _E,
+            "user",
+            "on request",
+            "Arm (true) or land and disarm (false)",
+            stack_namespace="uav0",
+        ),
+        Topic(
+            "flight_state",
+            "std_msgs/msg/String",
+            _S,
+            "flight_controller",
+            "10 Hz + on change",
+            "disarmed, armed, offboard, landing, failsafe_land",
+            stack_namespace="uav0",
+        ),
     )
 }
 
@@ -206,7 +293,8 @@ ENDPOINTS: dict[str, Endpoint] = {
             "std_msgs/msg/String",
             "std_msgs/msg/String",
             "mapper",
-            'Save the map as PGM + YAML; request: .yaml path (empty = configured); reply: JSON {"yaml": path}',
+            "Save the map as PGM + YAML; request: .yaml path relative to the mapper's maps_dir (default maps/; "
+            'outside it: refused; empty = the configured save_path); reply: JSON {"yaml": path}',
         ),
     )
 }
@@ -273,7 +361,7 @@ def markdown_table(namespace: str = DEFAULT_NAMESPACE) -> str:
         "|---|---|---|---|---|---|",
     ]
     for row in TOPICS.values():
-        key = f"{namespace}/{row.pattern}"
+        key = f"{row.stack_namespace or namespace}/{row.pattern}"
         lines.append(
             f"| `{key}` | `{row.msgtype}` | {row.kind.value} | {row.publisher} | {row.rate} | {row.description} |"
         )

@@ -137,7 +137,7 @@ class Launcher:
             settings = []
             if seed is not None and "seed" in {f.name for f in fields(cls.config_class)}:
                 settings.append(f"seed={int(seed)}")
-            if name == "sim":
+            if "lockstep_participants" in {f.name for f in fields(cls.config_class)}:  # the stack's sim
                 participants = [n for n, c in classes.items() if c.uses_sim_time] + list(extra_participants)
                 settings += [f"lockstep={json.dumps(lockstep)}", f"lockstep_participants={json.dumps(participants)}"]
             self.overrides[name] = settings + self.overrides.get(name, [])

@@ -27,7 +27,7 @@ from mjnav.sim.errors import UnknownWorldError
 MJCF_DIR: Path = mjnav.REPO_ROOT / "mjcf"
 
 #: Top-level files of ``mjcf/`` that are robot models, not worlds.
-ROBOT_MODELS: frozenset[str] = frozenset({"diffbot"})
+ROBOT_MODELS: frozenset[str] = frozenset({"diffbot", "quadrotor"})
 
 #: Name of the custom numeric holding the default goal (x, y[, yaw]).
 GOAL_NUMERIC = "mjnav_goal"

@@ -1,0 +1,408 @@
+"""A UAV flight driven over the bus: arm, stream a trajectory, land, and score the flight.
+
+:class:`FlightClient` is what ``mjnav fly`` and the UAV service tests use. It is a lockstep participant (like
+:class:`~mjnav.runtime.mission.MissionClient`): it steps in the clock's callback every ``period_s`` of sim time, and
+arms, streams the trajectory (the whole time-stamped ``nav_msgs/Path``, re-sent every ``resend_s`` as PX4-style proof
+of life), lands and measures only in those steps, so a flight is repeatable to the last bit. It measures the true
+position (``ground_truth``) against the reference, the INS estimate (``ins_odom``) and the GPS fixes (``gps``)
+against the truth at their stamps, all in sim time.
+
+A :class:`FlightPlan` is the reference as a function of sim time (ENU, metres): take-off from the pad, then the
+trajectory, then a landing. `figure8_plan`, `hover_plan` and `waypoints_plan` build the three of ``mjnav fly``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mjnav.bus import Bus
+from mjnav.jsonsafe import json_safe
+from mjnav.msgs import msg_class, ros
+from mjnav.msgs import uav as uav_msgs
+
+#: Sample spacing of the streamed trajectory, s.
+TRAJECTORY_DT_S = 0.05
+#: Each send covers the reference from this long before the send to ``TRAJECTORY_AHEAD_S`` after it, s.
+TRAJECTORY_BEHIND_S = 0.2
+TRAJECTORY_AHEAD_S = 2.0
+
+
+def _smoothstep(s: np.ndarray) -> np.ndarray:
+    """Quintic 0 → 1 on [0, 1] with zero velocity and acceleration at both ends."""
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+@dataclass(frozen=True)
+class FlightPlan:
+    """The reference of one flight (sim time relative to the flight's start, ENU metres).
+
+    Attributes:
+        name: ``figure8``, ``hover`` or ``waypoints``.
+        reference: maps times (N,) s → positions (N, 3) m.
+        start_s, end_s: the stretch the reference covers (take-off at ``start_s``), s.
+        measure_from_s, measure_to_s: the scored stretch (after take-off), s.
+    """
+
+    name: str
+    reference: Callable[[np.ndarray], np.ndarray]
+    start_s: float
+    end_s: float
+    measure_from_s: float
+    measure_to_s: float
+
+
+def _takeoff(pad: np.ndarray, altitude_m: float, t0: float, climb_s: float) -> Callable[[np.ndarray], np.ndarray]:
+    def ref(t: np.ndarray) -> np.ndarray:
+        s = _smoothstep((t - t0) / climb_s)
+        out = np.repeat(pad[None, :], len(t), axis=0)
+        out[:, 2] = pad[2] + s * (altitude_m - pad[2])
+        return out
+
+    return ref
+
+
+def figure8_plan(
+    pad: Any, t0: float, periods: int = 3, period_s: float = 8.0, altitude_m: float = 1.5, lead_in_s: float = 2.0
+) -> FlightPlan:
+    """Take off at ``t0`` (3 s climb, 2 s hover), then ``x = sin(2πτ/T)``, ``y = 0.5 sin(4πτ/T)``, z = 1.5 m,
+    centred on the pad. The figure's time τ speeds up smoothly from rest over a ``lead_in_s`` lead-in
+    (``dτ/dt`` from 0 to 1, quintic: the formula starts at full speed), then runs ``periods`` full periods, which are
+    scored, and comes to rest the same way."""
+    p = np.asarray(pad, dtype=np.float64)
+    climb = _takeoff(p, altitude_m, t0, 3.0)
+    t1 = t0 + 5.0
+    t2 = t1 + lead_in_s  # scored from here ...
+    t3 = t2 + periods * period_s  # ... to here
+    t4 = t3 + lead_in_s
+
+    def warp(u: np.ndarray) -> np.ndarray:  # ∫₀ᵘ smoothstep: 2.5u⁴ - 3u⁵ + u⁶
+        u = np.clip(u, 0.0, 1.0)
+        return u**4 * (2.5 - 3.0 * u + u * u)
+
+    def ref(t: np.ndarray) -> np.ndarray:
+        out = climb(t)
+        tau = lead_in_s * warp((t - t1) / lead_in_s) + np.clip(t - t2, 0.0, t3 - t2)
+        tau += lead_in_s * (0.5 - warp(1.0 - (t - t3) / lead_in_s)) * (t > t3)
+        fly = t > t1
+        out[fly, 0] = p[0] + np.sin(2.0 * math.pi * tau[fly] / period_s)
+        out[fly, 1] = p[1] + 0.5 * np.sin(4.0 * math.pi * tau[fly] / period_s)
+        return out
+
+    return FlightPlan("figure8", ref, t0, t4 + 1.0, t2, t3)
+
+
+def hover_plan(pad: Any, t0: float, hover_s: float = 10.0, altitude_m: float = 1.5) -> FlightPlan:
+    """Take off at ``t0`` (3 s climb) and hover ``hover_s`` at ``altitude_m`` over the pad; the hover after a 2 s
+    settling time is scored."""
+    p = np.asarray(pad, dtype=np.float64)
+    return FlightPlan("hover", _takeoff(p, altitude_m, t0, 3.0), t0, t0 + 5.0 + hover_s, t0 + 5.0, t0 + 5.0 + hover_s)
+
+
+def waypoints_plan(pad: Any, t0: float, waypoints: Any, speed_mps: float = 1.0, altitude_m: float = 1.5) -> FlightPlan:
+    """Take off at ``t0``, then fly through ``waypoints`` (K, 3) ENU m in order, each leg a quintic at an average
+    ``speed_mps``, with a 1 s pause at every waypoint; everything after the take-off is scored."""
+    p = np.asarray(pad, dtype=np.float64)
+    wps = np.asarray(waypoints, dtype=np.float64).reshape(-1, 3)
+    if not np.all(np.isfinite(wps)) or len(wps) == 0:
+        raise ValueError("waypoints must be a non-empty list of finite [x, y, z] points")
+    if not speed_mps > 0.0:
+        raise ValueError(f"speed_mps must be > 0, got {speed_mps}")
+    climb = _takeoff(p, altitude_m, t0, 3.0)
+    t1 = t0 + 5.0
+    points = [np.array([p[0], p[1], altitude_m]), *wps]
+    legs = []  # (t_start, t_end, from, to)
+    t = t1
+    for a, b in itertools.pairwise(points):
+        dur = max(1.0, 1.875 * float(np.linalg.norm(b - a)) / speed_mps)  # quintic peak speed = 1.875 x average
+        legs.append((t, t + dur, a, b))
+        t += dur + 1.0
+
+    def ref(ts: np.ndarray) -> np.ndarray:
+        out = climb(ts)
+        for ta, tb, a, b in legs:
+            on = ts >= ta
+            out[on] = a + _smoothstep((ts[on] - ta) / (tb - ta))[:, None] * (b - a)
+        return out
+
+    return FlightPlan("waypoints", ref, t0, t, t1, t)
+
+
+@dataclass
+class FlightSummary:
+    """The figures ``mjnav fly --json`` prints (see README)."""
+
+    rms_error_m: float
+    max_error_m: float
+    ins_rms_m: float
+    gps_rms_m: float
+    time_s: float
+    achieved_rtf: float
+    seed: int | None = None
+    trajectory: str = ""
+    controller: str = ""
+    state: str = ""
+    wind_mps: float = 0.0
+    gust_mps: float = 0.0
+    landed: bool = False
+    collisions: int = 0
+    final_state: str = ""
+    samples: int = 0
+    wall_s: float = math.nan
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict: floats rounded to 0.1 mm / 0.1 ms, non-finite floats as None."""
+        d = asdict(self)
+        for k, v in d.items():
+            if isinstance(v, float) and math.isfinite(v):
+                d[k] = round(v, 4)
+        return json_safe(d)
+
+
+@dataclass
+class _Record:
+    truth: dict[int, np.ndarray] = field(default_factory=dict)  # stamp (ns) -> true position (ENU)
+    ins: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    gps: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    states: list[tuple[float, str]] = field(default_factory=list)
+
+
+def _ns(t: float) -> int:
+    return round(t * 1e9)
+
+
+class FlightClient:
+    """Arms the UAV, streams a :class:`FlightPlan`, lands it and scores the flight (a lockstep participant).
+
+    Args:
+        bus: a bus in the UAV's namespace.
+        origin: (lat deg, lon deg, alt m) of the local ENU frame (the sim's), to read the GPS fixes.
+        name: the participant's name (the sim must list it in ``lockstep_participants``).
+        period_s: the client's step, sim seconds (the UAV clock's period).
+        resend_s: how often the trajectory is re-sent (proof of life for the failsafe), sim seconds.
+    """
+
+    def __init__(
+        self,
+        bus: Bus,
+        origin: tuple[float, float, float],
+        *,
+        name: str = "flight",
+        period_s: float = 0.02,
+        resend_s: float = 0.2,
+    ) -> None:
+        self.bus = bus
+        self.origin = origin
+        self.name = name
+        self.period_s = period_s
+        self.resend_s = resend_s
+        self._lock = threading.Condition()
+        self._rec = _Record()
+        self._now = math.nan
+        self._next_tick = math.nan
+        self._job: dict[str, Any] | None = None
+        self._participating = False
+        bus.staged = True
+        self.sim_status = bus.subscribe("sim_status")
+        self.flight_state = bus.subscribe("flight_state", callback=self._on_state)
+        bus.subscribe("ground_truth", callback=self._on_truth)
+        bus.subscribe("ins_odom", callback=self._on_ins)
+        bus.subscribe("gps", callback=self._on_gps)
+        self.arm_pub = bus.publisher("arm")
+        self.trajectory_pub = bus.publisher("trajectory")
+        self._ready_pub = bus.publisher("lockstep", service=name)
+        self._ready = msg_class("mjnav_msgs/msg/LockstepReady")
+        bus.subscribe("clock", callback=self._on_clock, immediate=True)
+
+    # ----------------------------------------------------------------------------------------- measurements
+
+    def _on_truth(self, msg: Any) -> None:
+        with self._lock:
+            self._rec.truth[_ns(ros.seconds(msg.header.stamp))] = uav_msgs.position(msg.pose)
+
+    def _on_ins(self, msg: Any) -> None:
+        from mjnav.aerial.rep103 import ned_to_enu
+
+        p = uav_msgs.position(msg.pose.pose)
+        if msg.header.frame_id == "map_ned":
+            p = ned_to_enu(p)
+        with self._lock:
+            self._rec.ins.append((_ns(ros.seconds(msg.header.stamp)), p))
+
+    def _on_gps(self, msg: Any) -> None:
+        from mjnav.aerial import geodetic_to_enu
+
+        e, n, u = geodetic_to_enu(msg.latitude, msg.longitude, msg.altitude, *self.origin)
+        with self._lock:
+            self._rec.gps.append((_ns(ros.seconds(msg.header.stamp)), np.array([e, n, u], dtype=np.float64)))
+
+    def _on_state(self, msg: Any) -> None:
+        with self._lock:
+            if not self._rec.states or self._rec.states[-1][1] != msg.data:
+                self._rec.states.append((self._now, msg.data))
+
+    def state(self) -> str:
+        """The flight controller's newest state ("" before the first)."""
+        with self._lock:
+            return self._rec.states[-1][1] if self._rec.states else ""
+
+    def states(self) -> list[tuple[float, str]]:
+        """(sim time received, state) at every change of ``flight_state``."""
+        with self._lock:
+            return list(self._rec.states)
+
+    def truth_track(self) -> tuple[np.ndarray, np.ndarray]:
+        """(stamps (N,) s, true positions (N, 3) ENU m) received so far."""
+        with self._lock:
+            keys = sorted(self._rec.truth)
+            pts = np.array([self._rec.truth[k] for k in keys]).reshape(-1, 3)
+        return np.array(keys, dtype=np.float64) / 1e9, pts
+
+    # ----------------------------------------------------------------------------------------------- steps
+
+    def _on_clock(self, msg: Any) -> None:
+        t = ros.seconds(msg.clock)
+        self.bus.commit()
+        with self._lock:
+            self._now = t
+            if not self._participating:
+                return
+            if self._next_tick == -math.inf:
+                self._next_tick = t
+            if t < self._next_tick - 1e-9:
+                return
+            self._step(t)
+            while self._next_tick <= t + 1e-9:
+                self._next_tick += self.period_s
+            self._lock.notify_all()
+        self._ready_pub.put(
+            self._ready(header=ros.header(t, ""), participant=self.name, ready_until=ros.time_msg(self._next_tick))
+        )
+
+    def _step(self, t: float) -> None:
+        job = self._job
+        if job is None or job["done"]:
+            return
+        if job["t0"] is None:
+            job["t0"] = t
+            job["wall0"] = time.monotonic()
+        rel = t - job["t0"]
+        plan: FlightPlan = job["plan"]
+        state = self._rec.states[-1][1] if self._rec.states else ""
+        if job["phase"] == "arm":
+            if state in ("armed", "offboard"):
+                job["phase"] = "fly"
+            elif rel >= job["next_arm"]:
+                self.arm_pub.put(uav_msgs.boolean(True))
+                job["next_arm"] = rel + 0.5
+        if job["phase"] == "fly" and rel >= job["next_send"]:
+            stream_until = job["stream_until_s"]
+            if rel < plan.end_s and (stream_until is None or rel < stream_until):
+                lo = max(plan.start_s, rel - TRAJECTORY_BEHIND_S)
+                ts = np.arange(lo, min(plan.end_s, rel + TRAJECTORY_AHEAD_S) + 1e-9, TRAJECTORY_DT_S)
+                self.trajectory_pub.put(uav_msgs.trajectory("map", job["t0"] + ts, plan.reference(ts), t_s=t))
+                job["next_send"] = rel + self.resend_s
+            elif rel >= plan.end_s:
+                job["phase"] = "land"
+                self.arm_pub.put(uav_msgs.boolean(False))
+                job["land_at"] = rel
+        if job["phase"] in ("fly", "land") and state == "disarmed" and rel > plan.start_s + 1.0:
+            job["done"] = True
+        if rel >= job["timeout_s"]:
+            job["done"] = True
+        if job["done"]:
+            job["t_end"] = t
+            job["wall_end"] = time.monotonic()
+
+    def fly(
+        self,
+        plan: FlightPlan,
+        *,
+        timeout_s: float,
+        wall_timeout_s: float = math.inf,
+        stream_until_s: float | None = None,
+    ) -> FlightSummary:
+        """Fly ``plan`` (times relative to the client's first step): arm, stream, land; score it.
+
+        Args:
+            plan: the reference.
+            timeout_s: sim seconds after which the flight ends whatever the vehicle does.
+            wall_timeout_s: bound on the wall-time wait (a stalled sim must not hang the caller).
+            stream_until_s: stop streaming the trajectory at this time (relative, s) and never command the landing
+                (to exercise the failsafe); None: stream to the end and land.
+
+        Raises:
+            RuntimeError: nobody subscribes to the trajectory (no flight controller) within 10 s.
+        """
+        if not self.trajectory_pub.wait_for_subscribers(10.0):
+            raise RuntimeError(f"nobody subscribes to {self.bus.key('trajectory')}: is the flight controller running?")
+        job: dict[str, Any] = {
+            "plan": plan,
+            "phase": "arm",
+            "next_arm": 0.0,
+            "next_send": 0.0,
+            "stream_until_s": stream_until_s,
+            "timeout_s": timeout_s,
+            "t0": None,
+            "done": False,
+        }
+        with self._lock:
+            self._job = job
+            join = not self._participating
+            self._participating = True
+            self._next_tick = -math.inf
+        if join:
+            self.bus.declare_lockstep(self.name)
+        deadline = time.monotonic() + wall_timeout_s
+        with self._lock:
+            while not job["done"] and time.monotonic() < deadline:
+                self._lock.wait(0.5)
+            if not job["done"]:
+                job["done"] = True
+                job["t_end"], job["wall_end"] = self._now, time.monotonic()
+            self._job = None
+        return self._score(job)
+
+    def _score(self, job: dict[str, Any]) -> FlightSummary:
+        plan: FlightPlan = job["plan"]
+        t0 = job["t0"] if job["t0"] is not None else math.nan
+        with self._lock:
+            rec = self._rec
+            lo, hi = _ns(t0 + plan.measure_from_s), _ns(t0 + plan.measure_to_s)
+            keys = sorted(k for k in rec.truth if lo <= k <= hi)
+            truth = np.array([rec.truth[k] for k in keys]).reshape(-1, 3)
+            ins = [(k, p) for k, p in rec.ins if lo <= k <= hi and k in rec.truth]
+            gps = [(k, p) for k, p in rec.gps if lo <= k <= hi and k in rec.truth]
+            ins_err = [float(np.linalg.norm(p - rec.truth[k])) for k, p in ins]
+            gps_err = [float(np.linalg.norm(p - rec.truth[k])) for k, p in gps]
+            states = list(rec.states)
+        ref = plan.reference(np.array(keys, dtype=np.float64) / 1e9 - t0) if keys else np.zeros((0, 3))
+        err = np.linalg.norm(truth - ref, axis=1) if keys else np.zeros(0)
+
+        def rms(e: Any) -> float:
+            return math.sqrt(float(np.mean(np.square(e)))) if len(e) else math.nan
+
+        wall = job.get("wall_end", math.nan) - job.get("wall0", math.nan)
+        sim = job.get("t_end", math.nan) - t0
+        status = self.sim_status.latest()
+        return FlightSummary(
+            rms_error_m=rms(err),
+            max_error_m=float(err.max()) if err.size else math.nan,
+            ins_rms_m=rms(ins_err),
+            gps_rms_m=rms(gps_err),
+            time_s=sim,
+            achieved_rtf=sim / wall if wall > 0 else math.nan,
+            trajectory=plan.name,
+            landed=bool(states) and states[-1][1] == "disarmed",
+            collisions=0 if status is None else int(status.collisions),
+            final_state=states[-1][1] if states else "",
+            samples=len(keys),
+        )

@@ -1,0 +1,334 @@
+"""The flight controller: an onboard task scheduler running the quadrotor cascade, with arming and a failsafe.
+
+Each step (one clock tick) runs one base tick of a :class:`~mjnav.aerial.Scheduler` whose table is the seed's
+order — ``EST`` (state from ``mocap`` or the INS + IMU), ``CTL`` (the cascade: position → velocity/acceleration →
+attitude → rate → mixer, :class:`~mjnav.aerial.CascadeController`), ``SVO`` (``rotor_cmd``), ``NET`` (setpoints,
+arming, the failsafe), ``DLG`` (``flight_state``). The tasks' measured run times are the scheduler's statistics.
+
+* **Controllers** (``controller``): ``pid`` (PX4-style position P + velocity PID), ``rpt`` (Chen's robust and
+  perfect tracking outer loop, ε = ``rpt_eps``), ``lqr`` and ``hinf`` (outer loops designed by LQR / H∞ on the
+  per-axis double integrator with integral action, :mod:`mjnav.aerial.outer`); all share the attitude and rate
+  loops, checked for loop separation.
+* **State** (``state_source``): ``mocap`` — the motion-capture odometry (true pose and twist); ``ins`` — position
+  and velocity from ``ins_odom`` (its frame id says ENU ``map`` or NED ``map_ned``; extrapolated by its velocity to
+  the step's time) with attitude and rates from the newest ``imu``. Everything is converted to NED / FRD here.
+* **Setpoints**: ``setpoint`` (``geometry_msgs/PoseStamped``, ENU: hold that position and yaw) or ``trajectory``
+  (``nav_msgs/Path`` whose poses are stamped with the sim time they are due: a cubic spline gives position,
+  velocity and acceleration feed-forward); the newer of the two wins.
+* **Arming**: ``arm`` true arms a landed vehicle (``armed``: idle rotors); the first setpoint then starts
+  ``offboard``. ``arm`` false lands (``landing``: descend at ``land_speed_mps`` over the current position) and
+  disarms on touchdown, or disarms at once on the ground.
+* **Failsafe** (PX4's offboard proof of life): in ``offboard``, when no setpoint or trajectory message arrived for
+  ``setpoint_timeout_s`` of sim time, the vehicle lands (``failsafe_land``) and disarms on touchdown.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mjnav.msgs import ros
+from mjnav.msgs import uav as uav_msgs
+from mjnav.runtime import Service
+
+#: Flight states published on ``flight_state``.
+STATES = ("disarmed", "armed", "offboard", "landing", "failsafe_land")
+_ROTORS = ("rotor0", "rotor1", "rotor2", "rotor3")
+
+
+@dataclass(frozen=True)
+class FlightControllerConfig:
+    """Flight controller settings (``services/flight_controller.toml``).
+
+    Attributes:
+        rate_hz: control rate = the scheduler's base tick (the UAV sim's clock rate).
+        controller: ``pid``, ``lqr``, ``hinf`` or ``rpt``.
+        state_source: ``ins`` (GPS/INS + IMU) or ``mocap`` (motion capture).
+        rpt_eps: RPT tuning ε (poles at 1/ε).
+        accel_limit_mps2: outer-loop acceleration command limit per axis (rpt, lqr, hinf), m/s².
+        att_p, rate_p, rate_i, rate_d: attitude P and body-rate PID gains (roll, pitch, yaw).
+        setpoint_timeout_s: failsafe after this long without a setpoint in offboard, sim seconds.
+        land_speed_mps: descent rate when landing, m/s.
+        touchdown_height_m: height above the arming height below which a slow vehicle counts as landed, m.
+        idle_speed_rad_s: rotor speed while armed on the ground, rad/s.
+        status_rate_hz: ``flight_state`` messages per sim second (and at every change).
+    """
+
+    rate_hz: float = 50.0
+    controller: str = "rpt"
+    state_source: str = "mocap"
+    rpt_eps: float = 0.25
+    accel_limit_mps2: float = 8.0
+    att_p: tuple[float, float, float] = (20.0, 20.0, 3.0)
+    rate_p: tuple[float, float, float] = (60.0, 60.0, 10.0)
+    rate_i: tuple[float, float, float] = (5.0, 5.0, 2.0)
+    rate_d: tuple[float, float, float] = (0.5, 0.5, 0.0)
+    setpoint_timeout_s: float = 0.5
+    land_speed_mps: float = 0.5
+    touchdown_height_m: float = 0.05
+    idle_speed_rad_s: float = 200.0
+    status_rate_hz: float = 10.0
+
+    def __post_init__(self) -> None:
+        if self.controller not in ("pid", "lqr", "hinf", "rpt"):
+            raise ValueError(f"controller must be pid, lqr, hinf or rpt, got {self.controller!r}")
+        if self.state_source not in ("ins", "mocap"):
+            raise ValueError(f"state_source must be ins or mocap, got {self.state_source!r}")
+        for name in ("rpt_eps", "accel_limit_mps2", "setpoint_timeout_s", "land_speed_mps", "status_rate_hz"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+
+
+class _Reference:
+    """The active reference: a held pose, or a stamped trajectory through a cubic spline (NED)."""
+
+    def __init__(self, t: np.ndarray, pos_ned: np.ndarray, yaw_ned: np.ndarray) -> None:
+        from scipy.interpolate import CubicSpline
+
+        self.t0, self.t1 = float(t[0]), float(t[-1])
+        self.hold = len(t) < 2
+        self.pos = pos_ned
+        self.yaw = yaw_ned
+        self.t = t
+        if not self.hold:
+            self.spline = CubicSpline(t, pos_ned, axis=0, bc_type="clamped")
+
+    def at(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """(position, velocity, acceleration, yaw) due at ``now`` (held before the first and after the last)."""
+        if self.hold or now <= self.t0 or now >= self.t1:
+            i = 0 if (self.hold or now <= self.t0) else -1
+            return self.pos[i].copy(), np.zeros(3), np.zeros(3), float(self.yaw[i])
+        s = self.spline
+        i = int(np.searchsorted(self.t, now, side="right")) - 1
+        return s(now), s(now, 1), s(now, 2), float(self.yaw[i])
+
+
+class FlightControllerService(Service[FlightControllerConfig]):
+    """Cascade control of the quadrotor from setpoints, on the onboard scheduler."""
+
+    name = "flight_controller"
+    config_class = FlightControllerConfig
+
+    def configure(self) -> None:
+        from mjnav.aerial import (
+            CascadeController,
+            CascadeGains,
+            QuadrotorParams,
+            RptController,
+            rpt_gains,
+        )
+        from mjnav.aerial.outer import hinf_outer_gains, lqr_outer_gains
+
+        cfg = self.config
+        self.params = QuadrotorParams()
+        gains = CascadeGains(att_p=cfg.att_p, rate_p=cfg.rate_p, rate_i=cfg.rate_i, rate_d=cfg.rate_d)
+        outer_gains = {
+            "pid": None,
+            "rpt": lambda: rpt_gains(cfg.rpt_eps),
+            "lqr": lqr_outer_gains,
+            "hinf": hinf_outer_gains,
+        }[cfg.controller]
+        self._make_controller = lambda: CascadeController(
+            self.params,
+            gains,
+            outer=None if outer_gains is None else RptController(outer_gains(), accel_limit=cfg.accel_limit_mps2),
+        )
+        self.ctl = self._make_controller()  # raises LoopSeparationError for an outer loop too fast
+        # warm the compiled kernels (conversions, controller) now rather than at the first step in flight
+        from mjnav.aerial import hover_state
+        from mjnav.aerial.rep103 import quat_enu_flu_to_ned_frd
+
+        quat_enu_flu_to_ned_frd([1.0, 0.0, 0.0, 0.0])
+        self.ctl.update(hover_state(self.params), np.zeros(3), 0.0, 1.0 / cfg.rate_hz)
+        state_topic = "mocap" if cfg.state_source == "mocap" else "ins_odom"
+        self.state_sub = self.bus.subscribe(state_topic)
+        # mocap carries attitude and rates; with the INS they come from the newest IMU sample
+        self.imu_sub = self.bus.subscribe("imu") if cfg.state_source == "ins" else None
+        self.setpoint_sub = self.bus.subscribe("setpoint")
+        self.trajectory_sub = self.bus.subscribe("trajectory")
+        self.arm_sub = self.bus.subscribe("arm")
+        self.rotor_pub = self.bus.publisher("rotor_cmd")
+        self.state_pub = self.bus.publisher("flight_state")
+
+    @staticmethod
+    def _timed(fn: Any) -> Any:
+        def run(now: float) -> float:
+            t0 = time.perf_counter()
+            fn(now)
+            return (time.perf_counter() - t0) * 1e6
+
+        return run
+
+    def activate(self) -> None:
+        from mjnav.aerial import Scheduler, Task
+
+        base = self.config.rate_hz
+        table = [
+            Task("EST", base, 200.0, 5),
+            Task("CTL", base, 1000.0, 4),
+            Task("SVO", base, 100.0, 3),
+            Task("NET", base, 500.0, 2),
+            Task("DLG", min(self.config.status_rate_hz, base), 500.0, 1),
+        ]
+        self.scheduler = Scheduler(
+            table,
+            base_rate_hz=base,
+            handlers={
+                "EST": self._timed(self._estimate),
+                "CTL": self._timed(self._control),
+                "SVO": self._timed(self._servo),
+                "NET": self._timed(self._network),
+                "DLG": self._timed(self._log_state),
+            },
+        )
+        self.state = "disarmed"
+        self._published_state = ""
+        self.x: np.ndarray | None = None  # (17,) NED state estimate
+        self.reference: _Reference | None = None
+        self._trajectory_stamp: tuple[float, int] | None = None
+        self.last_setpoint_t = -math.inf
+        self.home_d = math.nan  # NED down of the arming position
+        self.command = np.zeros(4)
+        self._land_start: tuple[float, np.ndarray] | None = None
+        self._land_yaw = 0.0
+        self._still_since: float | None = None  # since when the vehicle sits on the ground while landing
+        self._now = 0.0
+        self.ctl.reset()
+
+    def step(self, now: float) -> None:
+        self._now = now
+        self.scheduler.tick(now)
+
+    # ------------------------------------------------------------------------------------------------- tasks
+
+    def _estimate(self, now: float) -> None:
+        from mjnav.aerial.rep103 import enu_to_ned, flu_to_frd, quat_enu_flu_to_ned_frd
+
+        msg = self.state_sub.latest()
+        if msg is None:
+            return
+        stamp, pos, quat, vel, rates = uav_msgs.odometry_state(msg)
+        x = np.zeros(17)
+        if self.config.state_source == "mocap":
+            x[0:3], x[3:6] = enu_to_ned(pos), enu_to_ned(vel)
+            x[6:10], x[10:13] = quat_enu_flu_to_ned_frd(quat), flu_to_frd(rates)
+        else:
+            ned = msg.header.frame_id == "map_ned"
+            p, v = (pos, vel) if ned else (enu_to_ned(pos), enu_to_ned(vel))
+            x[0:3], x[3:6] = p + v * max(0.0, now - stamp), v
+            imu = None if self.imu_sub is None else self.imu_sub.latest()
+            if imu is None:
+                return
+            o, w = imu.orientation, imu.angular_velocity
+            x[6:10] = quat_enu_flu_to_ned_frd([o.w, o.x, o.y, o.z])
+            x[10:13] = flu_to_frd([w.x, w.y, w.z])
+        self.x = x
+
+    def _control(self, now: float) -> None:
+        x, cfg = self.x, self.config
+        if self.state == "disarmed" or x is None:
+            self.command = np.zeros(4)
+            return
+        if self.state == "armed":
+            self.command = np.full(4, cfg.idle_speed_rad_s)
+            return
+        dt = 1.0 / cfg.rate_hz
+        if self.state == "offboard" and self.reference is not None:
+            pos, vel, acc, yaw = self.reference.at(now)
+            if self.home_d - pos[2] < 0.1 and self.home_d - x[2] < cfg.touchdown_height_m:
+                # on the ground and asked to stay there: idle, no integrator wind-up against the ground
+                self.command = np.full(4, cfg.idle_speed_rad_s)
+                self.ctl.reset()
+                return
+        else:  # landing: descend over the point where the landing began
+            assert self._land_start is not None
+            t0, p0 = self._land_start
+            pos = p0.copy()
+            pos[2] = min(p0[2] + cfg.land_speed_mps * (now - t0), self.home_d + 0.5)
+            descending = pos[2] < self.home_d + 0.5
+            vel = np.array([0.0, 0.0, cfg.land_speed_mps if descending else 0.0])
+            acc, yaw = np.zeros(3), self._land_yaw
+            # landed (PX4's land detector in short): near the arming height and still, or — when the estimate
+            # drifted — the descent setpoint is at the ground and for a second the thrust has stayed below 60 % of
+            # hover (the ground carries the vehicle) without a fast vertical motion
+            pressed = pos[2] >= self.home_d and self.ctl.thrust_sp_n < 0.6 * self.params.hover_thrust_n
+            on_ground = pressed and abs(x[5]) < 0.5
+            self._still_since = (self._still_since if self._still_since is not None else now) if on_ground else None
+            near = self.home_d - x[2] < cfg.touchdown_height_m and abs(x[5]) < 0.1 and now - t0 > 0.5
+            if near or (self._still_since is not None and now - self._still_since >= 1.0):
+                self._set_state("disarmed", now)
+                self.command = np.zeros(4)
+                return
+        self.command = self.ctl.update(x, pos, yaw, dt, velocity_ff=vel, accel_ff=acc)
+
+    def _servo(self, now: float) -> None:
+        self.rotor_pub.put(ros.joint_state(now, _ROTORS, np.zeros(4), self.command))
+
+    def _network(self, now: float) -> None:
+        from mjnav.aerial.rep103 import enu_to_ned
+
+        for msg in self.arm_sub.drain():
+            self._on_arm(bool(msg.data), now)
+        setpoint = self.setpoint_sub.take()
+        trajectory = self.trajectory_sub.take()
+        if trajectory is not None and len(trajectory.poses) > 0:
+            self.last_setpoint_t = now
+            key = (ros.seconds(trajectory.header.stamp), len(trajectory.poses))
+            if key != self._trajectory_stamp or setpoint is not None:
+                ts, pts, yaws = uav_msgs.trajectory_arrays(trajectory)
+                if np.all(np.diff(ts) > 0):
+                    self._trajectory_stamp = key
+                    self.reference = _Reference(ts, enu_to_ned(pts), math.pi / 2 - yaws)
+                else:
+                    self.log.warning("trajectory dropped: its stamps are not increasing")
+        elif setpoint is not None:
+            self.last_setpoint_t = now
+            self._trajectory_stamp = None
+            q = setpoint.pose.orientation
+            yaw_enu = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+            p = enu_to_ned(uav_msgs.position(setpoint.pose))
+            self.reference = _Reference(np.array([now]), p[None, :], np.array([math.pi / 2 - yaw_enu]))
+        if self.state == "armed" and self.reference is not None and now - self.last_setpoint_t < 1e-9:
+            self.ctl.reset()
+            self._set_state("offboard", now)
+        elif self.state == "offboard" and now - self.last_setpoint_t >= self.config.setpoint_timeout_s - 1e-9:
+            self.log.warning("no setpoint for %.2f s of sim time: failsafe, landing", now - self.last_setpoint_t)
+            self._start_landing("failsafe_land", now)
+
+    def _on_arm(self, arm: bool, now: float) -> None:
+        if arm and self.state == "disarmed":
+            if self.x is None:
+                self.log.warning("arming refused: no state estimate yet")
+                return
+            self.home_d = float(self.x[2])
+            self.reference = None
+            self._set_state("armed", now)
+        elif not arm and self.state == "armed":
+            self._set_state("disarmed", now)
+        elif not arm and self.state == "offboard":
+            self._start_landing("landing", now)
+
+    def _start_landing(self, state: str, now: float) -> None:
+        assert self.x is not None
+        self._land_start = (now, self.x[0:3].copy())
+        self._still_since = None
+        from mjnav.aerial import euler_from_quat
+
+        self._land_yaw = float(euler_from_quat(self.x[6:10])[2])
+        self._set_state(state, now)
+
+    def _set_state(self, state: str, now: float) -> None:
+        if state != self.state:
+            self.log.info("%s -> %s at %.3f s", self.state, state, now)
+        self.state = state
+        self._log_state(now)
+
+    def _log_state(self, now: float) -> None:
+        self.state_pub.put(uav_msgs.string(self.state))
+
+    def deactivate(self) -> None:
+        self.rotor_pub.put(ros.joint_state(self._now, _ROTORS, np.zeros(4), np.zeros(4)))

@@ -1,0 +1,193 @@
+"""The INS service: GPS/INS fusion (:class:`~mjnav.aerial.GpsIns`) from ``imu`` and ``gps`` to ``ins_odom``.
+
+Every IMU sample (body FLU specific force, AHRS attitude in ENU) is turned into a kinematic acceleration in NED —
+``a = R_nb f_frd + g ẑ``, the REP-103 → NED conversion done here, explicitly — and drives one prediction; every
+GPS fix (WGS84, stamped when taken) is converted to NED about the configured geodetic origin and fused at its stamp
+(the filter replays the IMU samples since). The filter starts at the first fix. Each step publishes the estimate
+stamped with the time of the newest IMU sample: position, velocity (in the odometry frame) and covariance, the
+AHRS attitude and the body rates, in ENU / FLU (``frame = "enu"``, frames ``map`` → ``base_link``, REP-103) or in
+NED / FRD (``frame = "ned"``, ``map_ned`` → ``base_link_frd``).
+
+The barometer is not fused (the filter's measurement is GPS position only).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mjnav.msgs import ros
+from mjnav.msgs import uav as uav_msgs
+from mjnav.runtime import Service
+
+
+@dataclass(frozen=True)
+class InsConfig:
+    """INS settings (``services/ins.toml``).
+
+    Attributes:
+        rate_hz: publishing rate (steps per sim second; the clock's rate or a divisor of it).
+        imu_rate_hz: the IMU's rate (the filter's prediction period), Hz.
+        accel_noise_mps2, accel_bias_walk_mps2_per_sqrt_s, gps_sigma_m: the filter's noise model.
+        history_s: how late a GPS fix may arrive, s.
+        frame: ``enu`` (REP-103) or ``ned`` for the published odometry.
+        origin_lat_deg, origin_lon_deg, origin_alt_m: the local frame's geodetic origin (the sim's).
+        gravity_mps2: gravity removed from the specific force, m/s².
+    """
+
+    rate_hz: float = 25.0
+    imu_rate_hz: float = 100.0
+    accel_noise_mps2: float = 0.02
+    accel_bias_walk_mps2_per_sqrt_s: float = 1e-3
+    gps_sigma_m: float = 1.0
+    history_s: float = 0.5
+    frame: str = "enu"
+    origin_lat_deg: float = 47.397742
+    origin_lon_deg: float = 8.545594
+    origin_alt_m: float = 488.0
+    gravity_mps2: float = 9.80665
+
+    def __post_init__(self) -> None:
+        if self.frame not in ("enu", "ned"):
+            raise ValueError(f"frame must be 'enu' or 'ned', got {self.frame!r}")
+        for name in ("imu_rate_hz", "gps_sigma_m", "history_s", "accel_noise_mps2", "gravity_mps2"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+
+
+class InsService(Service[InsConfig]):
+    """GPS/INS on the bus."""
+
+    name = "ins"
+    config_class = InsConfig
+
+    def configure(self) -> None:
+        from mjnav.aerial import GpsIns, GpsInsConfig
+
+        cfg = self.config
+        self._filter_config = GpsInsConfig(
+            imu_rate_hz=cfg.imu_rate_hz,
+            accel_noise_mps2=cfg.accel_noise_mps2,
+            accel_bias_walk_mps2_per_sqrt_s=cfg.accel_bias_walk_mps2_per_sqrt_s,
+            gps_sigma_m=cfg.gps_sigma_m,
+            history_s=cfg.history_s,
+            init_pos_sigma_m=cfg.gps_sigma_m,
+        )
+        self._make_filter = GpsIns
+        self._origin = (cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m)
+        self._lock = threading.Lock()
+        self._imu: list[Any] = []
+        self._fixes: list[Any] = []
+        self.bus.subscribe("imu", callback=self._on_imu)
+        self.bus.subscribe("gps", callback=self._on_gps)
+        self.pub = self.bus.publisher("ins_odom")
+        # warm the compiled kernels now, not at the first fix
+        warm = GpsIns(self._filter_config)
+        warm.predict(np.zeros(3))
+        warm.update_gps(np.zeros(3))
+        from mjnav.aerial import geodetic_to_ned
+        from mjnav.aerial.rep103 import quat_enu_flu_to_ned_frd
+
+        quat_enu_flu_to_ned_frd([1.0, 0.0, 0.0, 0.0])
+        geodetic_to_ned(cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m, *self._origin)
+
+    def activate(self) -> None:
+        self.ins: Any = None
+        self.last_imu: tuple[float, np.ndarray, np.ndarray] | None = None  # (stamp, quat NED/FRD, rates FRD)
+        self.fixes_fused = 0
+        self.fixes_rejected = 0
+        with self._lock:
+            self._imu.clear()
+            self._fixes.clear()
+
+    def _on_imu(self, msg: Any) -> None:
+        with self._lock:
+            self._imu.append(msg)
+
+    def _on_gps(self, msg: Any) -> None:
+        with self._lock:
+            self._fixes.append(msg)
+
+    def step(self, now: float) -> None:
+        from mjnav.aerial import StaleMeasurementError, geodetic_to_ned, quat_to_rotation
+        from mjnav.aerial.rep103 import flu_to_frd, quat_enu_flu_to_ned_frd
+
+        cfg = self.config
+        with self._lock:
+            samples, self._imu = self._imu, []
+            fixes, self._fixes = self._fixes, []
+        for msg in samples:
+            t = ros.seconds(msg.header.stamp)
+            o = msg.orientation
+            q = quat_enu_flu_to_ned_frd([o.w, o.x, o.y, o.z])
+            a = msg.linear_acceleration
+            w = msg.angular_velocity
+            f_frd = flu_to_frd([a.x, a.y, a.z])
+            self.last_imu = (t, q, flu_to_frd([w.x, w.y, w.z]))
+            if self.ins is None:
+                if not fixes:
+                    continue
+                fix = fixes[0]
+                p0 = geodetic_to_ned(
+                    fix.latitude, fix.longitude, fix.altitude, cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m
+                )
+                x0 = np.zeros(9)
+                x0[0:3] = p0
+                self.ins = self._make_filter(self._filter_config, x0=x0, t0_s=t)
+                fixes = fixes[1:]
+                continue  # the filter starts at this sample's time; the next sample propagates it
+            acc = quat_to_rotation(q) @ f_frd
+            acc[2] += cfg.gravity_mps2
+            self.ins.predict(acc)
+        if self.ins is None:
+            return
+        for fix in fixes:
+            y = np.array(
+                geodetic_to_ned(
+                    fix.latitude, fix.longitude, fix.altitude, cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m
+                ),
+                dtype=np.float64,
+            )
+            try:
+                self.ins.update_gps(y, stamp_s=ros.seconds(fix.header.stamp))
+                self.fixes_fused += 1
+            except StaleMeasurementError as exc:
+                self.fixes_rejected += 1
+                self.log.warning("GPS fix dropped: %s", exc)
+        self._publish()
+
+    def _publish(self) -> None:
+        from mjnav.aerial.rep103 import flu_to_frd, ned_to_enu, quat_ned_frd_to_enu_flu
+
+        assert self.ins is not None and self.last_imu is not None
+        stamp, q_ned, rates_frd = self.last_imu
+        x, cov = self.ins.x, self.ins.P
+        if self.config.frame == "ned":
+            msg = uav_msgs.odometry3d(
+                stamp,
+                "map_ned",
+                "base_link_frd",
+                x[0:3],
+                q_ned,
+                x[3:6],
+                rates_frd,
+                position_variance_m2=cov[0:3, 0:3],
+                velocity_variance=cov[3:6, 3:6],
+            )
+        else:
+            swap = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # NED <-> ENU
+            msg = uav_msgs.odometry3d(
+                stamp,
+                "map",
+                "base_link",
+                ned_to_enu(x[0:3]),
+                quat_ned_frd_to_enu_flu(q_ned),
+                ned_to_enu(x[3:6]),
+                flu_to_frd(rates_frd),
+                position_variance_m2=swap @ cov[0:3, 0:3] @ swap.T,
+                velocity_variance=swap @ cov[3:6, 3:6] @ swap.T,
+            )
+        self.pub.put(msg)
