@@ -11,7 +11,8 @@ robot drives from the world's start to its default goal on an unknown map. It pr
 * each service's CPU share over the drive (CPU seconds per wall second, from /proc; 2 cores = 200 %).
 
 Goals (issue 10): every world × 5 seeds at ``--rtf max``: reached, 0 collisions, min clearance >= 0.05 m, time
-ratio <= 1; the whole stack at >= 10x real time.
+ratio <= 1; the whole stack at >= 10x real time. Issue 13: the same runs navigate on SLAM with the sim's
+``ground_truth`` off; ATE (SLAM's pose against the truth) <= 0.03 m, map accuracy >= 0.95 both ways.
 
     python benchmarks/mission.py                              # every world with a goal, seeds 0-4, rtf max
     python benchmarks/mission.py --world warehouse --seeds 0,1 --rtf 4
@@ -31,13 +32,14 @@ import time
 from pathlib import Path
 
 from mjnav.bus import Bus, BusConfig, wait_until
+from mjnav.msgs import ros
 from mjnav.runtime.mission import MissionClient
 from mjnav.sim import Simulator
-from mjnav.sim.truth import shortest_length_m
+from mjnav.sim.truth import map_accuracy, shortest_length_m
 from mjnav.sim.worlds import available_worlds, world_info
 
 REPO = Path(__file__).resolve().parent.parent
-SERVICES = ("sim", "mapper", "planner", "smoother", "controller", "viz")
+SERVICES = ("sim", "slam", "mapper", "planner", "smoother", "controller", "viz")
 _TICKS = os.sysconf("SC_CLK_TCK")
 
 
@@ -60,16 +62,17 @@ def run_once(
     info = world_info(world)
     assert info.goal is not None, f"world {world} has no default goal"
     port = _free_port()
-    participants = ["mapper", "planner", "smoother", "controller", "mission"]
+    participants = ["slam", "mapper", "planner", "smoother", "controller", "mission"]
     cmd = [sys.executable, "-m", "mjnav", "up", "--port", str(port), "--headless", "--seed", str(seed)]
     cmd += ["--set", f"sim.world={world}", "--set", f"sim.rtf={'0' if rtf == 'max' else rtf}"]
+    cmd += ["--set", "sim.publish_ground_truth=false"]  # the stack navigates on SLAM; the truth is only evaluated
     for item in overrides:
         cmd += ["--set", item]
     cmd += ["--free-running"] if free_running else ["--set", f"sim.lockstep_participants={json.dumps(participants)}"]
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         with Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus:
-            client = MissionClient(bus, name="mission")
+            client = MissionClient(bus, name="mission", initial_pose=info.start)  # the operator's initialpose
             status = bus.subscribe("status", service="*", immediate=True)  # wall-time reports, not staged
             if not wait_until(lambda: set(SERVICES) <= set(bus.alive_services(0.5)), 180.0):
                 raise RuntimeError("the stack did not come up")
@@ -85,10 +88,14 @@ def run_once(
             collisions = client.collisions()
             clearance = client.min_range_m() - Simulator(info.path, lidar=None).robot_radius_m
             rtf_got = client.achieved_rtf
+            ate = client.ate_rms_m()
+            loops = int(json.loads(bus.call("slam_info", timeout_s=10.0).data)["loop_closures"])
+            map_msg = client.map.latest()
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(60)
     optimal = shortest_length_m(world, outcome.start, outcome.goal)
+    recall, precision = map_accuracy(info.path, *ros.grid_frame(map_msg)) if map_msg is not None else (0.0, 0.0)
     v_max = float(config["max_speed_mps"])
     bound = 1.25 * optimal / v_max
     return {
@@ -105,16 +112,31 @@ def run_once(
         "min_clearance_m": clearance,
         "rtf_achieved": rtf_got,
         "collisions": collisions,
+        "ate_rms_m": ate,
+        "loop_closures": loops,
+        "map_accuracy": [recall, precision],
         "cpu_share": cpu,
     }
 
 
 def _verdict(r: dict[str, object]) -> bool:
+    """Issue 10's goal for one run: reached, no collision, clearance >= 5 cm, time within the bound."""
     return (
         r["result"] == "reached"
         and r["collisions"] == 0
         and float(r["min_clearance_m"]) >= 0.05  # type: ignore[arg-type]
         and float(r["time_ratio"]) <= 1.0  # type: ignore[arg-type]
+    )
+
+
+def _slam_verdict(r: dict[str, object]) -> bool:
+    """Issue 13's goal for one run: reached, no collision, ATE <= 3 cm, map accuracy >= 0.95 both ways."""
+    acc = r["map_accuracy"]
+    return (
+        r["result"] == "reached"
+        and r["collisions"] == 0
+        and float(r["ate_rms_m"]) <= 0.03  # type: ignore[arg-type]
+        and min(acc) >= 0.95  # type: ignore[call-overload]
     )
 
 
@@ -150,6 +172,11 @@ def main() -> int:
         f"goal: reached, 0 collisions, clearance >= 0.05 m, time ratio <= 1: {len(ok)}/{len(rows)} runs "
         f"{'met' if len(ok) == len(rows) else 'NOT met'}"
     )
+    slam_ok = [r for r in rows if _slam_verdict(r)]
+    print(
+        f"goal: on SLAM with ground truth off, reached, 0 collisions, ATE <= 0.03 m, map accuracy >= 0.95: "
+        f"{len(slam_ok)}/{len(rows)} runs {'met' if len(slam_ok) == len(rows) else 'NOT met'}"
+    )
     median = rtfs[len(rtfs) // 2]
     print(
         f"goal: stack >= 10x real time: median {median:.1f}x (min {rtfs[0]:.1f}x) "
@@ -163,7 +190,9 @@ def _print_row(r: dict[str, object]) -> None:
     print(
         f"{r['world']:>9s} seed {r['seed']} rtf {r['rtf_requested']}: {r['result']:>8s} coll {r['collisions']} "
         f"clear {r['min_clearance_m']:.3f} m  t {r['time_to_goal_s']:.2f}/{r['bound_s']:.1f} s "
-        f"(ratio {r['time_ratio']:.2f})  rtf {r['rtf_achieved']:.1f}x  {'ok' if _verdict(r) else 'FAIL'}  CPU: {cpu}",
+        f"(ratio {r['time_ratio']:.2f})  rtf {r['rtf_achieved']:.1f}x  {'ok' if _verdict(r) else 'FAIL'}  "
+        f"ATE {r['ate_rms_m']:.4f} m  loops {r['loop_closures']}  map {r['map_accuracy'][0]:.3f}/"  # type: ignore[index]
+        f"{r['map_accuracy'][1]:.3f} {'ok' if _slam_verdict(r) else 'FAIL'}  CPU: {cpu}",
         flush=True,
     )
 

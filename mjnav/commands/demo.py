@@ -188,15 +188,17 @@ def _mission(
     from mjnav.runtime.mission import MissionClient, MissionSummary
 
     log = sys.stderr
-    client = MissionClient(bus, name=MISSION)
+    client = MissionClient(bus, name=MISSION, initial_pose=info.start)  # the operator's initialpose
     if not wait_until(lambda: set(services) <= set(bus.alive_services(0.5)), 180.0):
         raise RuntimeError(f"services did not come up within 180 s (alive: {bus.alive_services(0.5)})")
     v_max = math.nan
+    pose_source = ""
     try:
         config = json.loads(bus.call("config", service="controller", timeout_s=5.0).data)
         v_max = float(config.get("max_speed_mps", math.nan))
+        pose_source = str(config.get("pose_source", ""))
     except (NoReply, ValueError, KeyError) as exc:
-        print(f"mjnav demo: could not read the controller's max speed: {exc}", file=log)
+        print(f"mjnav demo: could not read the controller's settings: {exc}", file=log)
     wall_limit = len(goals) * (3 * timeout_s / (rtf if rtf > 0 else 10.0) + 60.0)
     print(f"mjnav demo: goals {', '.join(f'({x:.2f}, {y:.2f})' for x, y in goals)}", file=log)
     outcomes = client.run_goals(goals, timeout_s=timeout_s, wall_timeout_s=wall_limit)
@@ -208,6 +210,13 @@ def _mission(
     optimal = _optimal_length(info, outcomes)
     radius = _robot_radius(info)
     pose = client.final_pose
+    loops: int | None = None
+    if "slam" in services:
+        try:
+            loops = int(json.loads(bus.call("slam_info", timeout_s=5.0).data)["loop_closures"])
+        except (NoReply, ValueError, KeyError) as exc:
+            print(f"mjnav demo: could not read SLAM's statistics: {exc}", file=log)
+    accuracy = _map_accuracy(info, client.map.latest())
     return MissionSummary(
         reached=len(outcomes) == len(goals) and all(o.result == "reached" for o in outcomes),
         collisions=client.collisions(),
@@ -219,7 +228,22 @@ def _mission(
         goals=[o.__dict__ for o in outcomes],
         final_pose=None if pose is None else [pose.x, pose.y, pose.theta],
         achieved_rtf=client.achieved_rtf,
+        pose_source=pose_source,
+        ate_rms_m=client.ate_rms_m(),
+        loop_closures=loops,
+        map_accuracy=accuracy,
     )
+
+
+def _map_accuracy(info: Any, msg: Any) -> list[float] | None:
+    """[recall, precision] of the newest ``map`` against the world's true obstacles (None without a map)."""
+    from mjnav.msgs import ros
+    from mjnav.sim.truth import map_accuracy
+
+    if msg is None:
+        return None
+    cells, frame = ros.grid_frame(msg)
+    return list(map_accuracy(info.path, cells, frame))
 
 
 def _robot_radius(info: Any) -> float:
@@ -244,6 +268,8 @@ def _print_summary(data: dict[str, Any], out: Path | None) -> None:
         f"reached: {data['reached']}   collisions: {data['collisions']}",
         f"time: {data['time_s']} s sim   driven: {data['path_length_m']} m   optimal: {data['optimal_length_m']} m",
         f"v_max: {data['v_max_mps']} m/s   min clearance: {data['min_clearance_m']} m",
+        f"pose source: {data['pose_source']}   ATE: {data['ate_rms_m']} m   loop closures: {data['loop_closures']}"
+        f"   map accuracy (recall, precision): {data['map_accuracy']}",
     ]
     if out is not None:
         extra = "".join(f", {name}" for name in ("video.mp4", "scene.html") if (out / name).exists())

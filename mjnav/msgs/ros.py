@@ -28,6 +28,7 @@ _Point = _types["geometry_msgs/msg/Point"]
 _Pose = _types["geometry_msgs/msg/Pose"]
 _PoseStamped = _types["geometry_msgs/msg/PoseStamped"]
 _PoseWithCovariance = _types["geometry_msgs/msg/PoseWithCovariance"]
+_PoseWithCovarianceStamped = _types["geometry_msgs/msg/PoseWithCovarianceStamped"]
 _Quaternion = _types["geometry_msgs/msg/Quaternion"]
 _TFMessage = _types["tf2_msgs/msg/TFMessage"]
 _Time = _types["builtin_interfaces/msg/Time"]
@@ -113,6 +114,37 @@ def pose2d(pose: Any) -> Pose2D:
     """Planar pose (x, y, yaw) of a geometry_msgs/Pose; z, roll and pitch are dropped."""
     q = pose.orientation
     return Pose2D(pose.position.x, pose.position.y, quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
+#: Indices of x, y and yaw in a row-major 6×6 ROS pose covariance (x, y, z, roll, pitch, yaw).
+_XY_YAW = np.array([0, 1, 5])
+
+
+def pose_with_covariance_stamped(t_s: float, frame_id: str, pose: Pose2D, covariance: Any) -> Any:
+    """geometry_msgs/PoseWithCovarianceStamped of a planar pose; ``covariance``: (3, 3) over (x, y, yaw) in m² and
+    rad², placed in the 6×6 matrix (the other entries 0)."""
+    cov = np.zeros((6, 6))
+    cov[np.ix_(_XY_YAW, _XY_YAW)] = np.asarray(covariance, dtype=np.float64).reshape(3, 3)
+    return _PoseWithCovarianceStamped(
+        header=header(t_s, frame_id), pose=_PoseWithCovariance(pose=pose_msg(pose), covariance=cov.reshape(36))
+    )
+
+
+def planar_covariance(msg: Any) -> Any:
+    """(3, 3) covariance over (x, y, yaw) of a geometry_msgs/PoseWithCovariance(Stamped)."""
+    inner = msg.pose if hasattr(msg.pose, "covariance") else msg
+    return np.asarray(inner.covariance, dtype=np.float64).reshape(6, 6)[np.ix_(_XY_YAW, _XY_YAW)]
+
+
+#: Topic of each pose source a service can navigate on: SLAM's estimate (map frame), the sim's ground truth (map
+#: frame; evaluation and comparisons only), wheel odometry (odom frame, drifts).
+POSE_TOPICS = {"slam": "pose", "ground_truth": "ground_truth", "odom": "odom"}
+
+
+def pose_of(msg: Any) -> Pose2D:
+    """Planar pose of a PoseStamped, PoseWithCovarianceStamped or Odometry message."""
+    pose = msg.pose
+    return pose2d(pose.pose if hasattr(pose, "pose") else pose)
 
 
 def twist(v_mps: float, omega_radps: float) -> Any:

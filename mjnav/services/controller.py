@@ -49,7 +49,7 @@ class ControllerConfig:
 
     Attributes:
         rate_hz: command rate (sim time).
-        pose_source: ``ground_truth`` or ``odom``.
+        pose_source: ``slam`` (SLAM's estimate on ``pose``), ``ground_truth`` (the sim's truth) or ``odom``.
         max_speed_mps: cruise speed v_max.
         lookahead_gain_s, min_lookahead_m, max_lookahead_m: L = clamp(v·g, L_min, L_max).
         curvature_threshold_invm: κ_h of the curvature heuristic.
@@ -72,7 +72,7 @@ class ControllerConfig:
     """
 
     rate_hz: float = 20.0
-    pose_source: Literal["ground_truth", "odom"] = "ground_truth"
+    pose_source: Literal["slam", "ground_truth", "odom"] = "slam"
     max_speed_mps: float = 0.5
     lookahead_gain_s: float = 1.2
     min_lookahead_m: float = 0.35
@@ -158,7 +158,7 @@ class ControllerService(Service[ControllerConfig]):
         self.pursuit = PurePursuit(self.config.pursuit_params())
         self.collision = self.config.collision_params()
         self.path_sub = self.bus.subscribe("path")
-        self.pose_sub = self.bus.subscribe(self.config.pose_source, callback=self._on_pose)
+        self.pose_sub = self.bus.subscribe(ros.POSE_TOPICS[self.config.pose_source], callback=self._on_pose)
         self.scan_sub = self.bus.subscribe("scan")
         self.map_sub = self.bus.subscribe("map")
         self.status_sub = self.bus.subscribe("goal_status")
@@ -191,8 +191,7 @@ class ControllerService(Service[ControllerConfig]):
         self.walls: tuple[GridFrame, Any] | None = None  # the map's occupied cells, grown by one cell
 
     def _on_pose(self, msg: Any) -> None:
-        pose = msg.pose.pose if self.config.pose_source == "odom" else msg.pose
-        self.pending.append((ros.seconds(msg.header.stamp), ros.pose2d(pose)))
+        self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
 
     def _update_obstacles(self) -> None:
         """Fuse a new scan: its points in the map frame (at the pose of its stamp) and their velocities."""
@@ -305,7 +304,7 @@ class ControllerService(Service[ControllerConfig]):
         if pose_msg is None or now - ros.seconds(pose_msg.header.stamp) > self.config.pose_timeout_s:
             self._stop("no recent pose")
             return
-        pose = ros.pose2d(pose_msg.pose.pose if self.config.pose_source == "odom" else pose_msg.pose)
+        pose = ros.pose_of(pose_msg)
         try:
             v, w = self.pursuit.compute(pose, self.speed, path, self._obstacle_distance())
         except PathError as exc:
@@ -334,7 +333,7 @@ class ControllerService(Service[ControllerConfig]):
         pose_msg = self.pose_sub.latest()
         if pose_msg is None:
             return False
-        pose = ros.pose2d(pose_msg.pose.pose if cfg.pose_source == "odom" else pose_msg.pose)
+        pose = ros.pose_of(pose_msg)
         if self.progress is None or math.hypot(pose.x - self.progress[0], pose.y - self.progress[1]) > (
             cfg.progress_radius_m
         ):

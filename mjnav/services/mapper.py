@@ -1,9 +1,15 @@
-"""The mapper service: ``scan`` + robot pose → log-odds ``map`` and inflated ``costmap``.
+"""The mapper service: the navigation ``costmap`` (Nav2's layered style), and a map of its own on request.
 
-Each new scan is fused into a :class:`~mjnav.mapping.OccupancyGrid` at the pose the robot had when the scan was
-taken (interpolated from the pose topic). ``map`` (probabilities 0–100, −1 unknown) and ``costmap`` (Nav2-style
-inflation, 0–100, −1 unknown) go out at ``publish_rate_hz`` of sim time. The map is saved as PGM + YAML on request
-(endpoint ``save_map``) and on exit (``save_path``); ``prior_map`` starts from a saved map.
+With ``map_source = "slam"`` (the default stack) it is the costmap service: a static layer from SLAM's ``map``
+(resampled onto the mapper's fixed grid), an obstacle layer from the newest ``scan`` at SLAM's ``pose`` (the
+returns within ``obstacle_range_m`` — moving obstacles appear at once, whatever the map says), and Nav2-style
+inflation (0–100, −1 unknown), at ``publish_rate_hz`` of sim time.
+
+With ``map_source = "scan"`` it maps by itself: each new scan is fused into a log-odds
+:class:`~mjnav.mapping.OccupancyGrid` at the pose the robot had when the scan was taken (interpolated from
+``pose_source``), and it publishes that ``map`` (probabilities 0–100, −1 unknown) beside the costmap; the map is
+checkpointed in the run's state directory, saved as PGM + YAML on request (endpoint ``save_map``) and on exit
+(``save_path``); ``prior_map`` starts from a saved map. In slam mode ``save_map`` saves the newest SLAM map.
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ import numpy as np
 
 from mjnav.geometry import Pose2D, PoseHistory
 from mjnav.mapping import OccupancyGrid, inflation_costmap, read_ros_map, write_ros_map
+from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
 
@@ -30,7 +37,9 @@ class MapperConfig:
     Attributes:
         rate_hz: loop rate (sim time); every new scan is integrated at the next step.
         publish_rate_hz: ``map`` and ``costmap`` publications per sim second.
-        pose_source: ``ground_truth`` (true pose) or ``odom`` (wheel odometry, drifting).
+        map_source: ``slam`` (static layer from SLAM's ``map``) or ``scan`` (a log-odds map of its own).
+        pose_source: ``slam`` (SLAM's ``pose``), ``ground_truth`` (true pose) or ``odom`` (drifting).
+        obstacle_range_m: the obstacle layer marks the newest scan's returns up to this range (slam mode).
         width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)).
         laser_offset_m: lidar position in base_link (x, y), metres.
         max_range_m: readings at or beyond this are "no return" (free up to it).
@@ -46,7 +55,9 @@ class MapperConfig:
 
     rate_hz: float = 20.0
     publish_rate_hz: float = 2.0
-    pose_source: Literal["ground_truth", "odom"] = "ground_truth"
+    map_source: Literal["slam", "scan"] = "slam"
+    pose_source: Literal["slam", "ground_truth", "odom"] = "slam"
+    obstacle_range_m: float = 3.0
     width_m: float = 20.0
     height_m: float = 20.0
     resolution_m: float = 0.05
@@ -94,16 +105,19 @@ class MapperService(Service[MapperConfig]):
                 cfg.resolution_m,
                 origin_m=cfg.origin_m,
             )
-        self._restore_checkpoint()
+        self.frame = GridFrame(self.grid.resolution_m, self.grid.origin_m, self.grid.shape)
+        self.slam_mode = cfg.map_source == "slam"
+        if not self.slam_mode:
+            self._restore_checkpoint()
         # Pose callbacks run in Zenoh threads: they only append here; step() moves them into the history.
         self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
         self.scan = self.bus.subscribe("scan")
-        if cfg.pose_source == "ground_truth":
-            self.bus.subscribe("ground_truth", callback=self._on_ground_truth)
-        else:
-            self.bus.subscribe("odom", callback=self._on_odom)
-        self.map_pub = self.bus.publisher("map")
+        self.bus.subscribe(ros.POSE_TOPICS[cfg.pose_source], callback=self._on_pose)
+        self.static = self.bus.subscribe("map") if self.slam_mode else None
+        self.map_pub = None if self.slam_mode else self.bus.publisher("map")
         self.costmap_pub = self.bus.publisher("costmap")
+        self.obstacles: Any = np.zeros((0, 2))  # the obstacle layer: newest scan's returns in map, (M, 2)
+        self._centres: Any = None  # (H·W, 2) map-frame cell centres of the grid (slam mode, computed once)
         self.bus.serve("save_map", self._on_save)
         self.laser = Pose2D(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0)
         self.scans = 0
@@ -118,11 +132,8 @@ class MapperService(Service[MapperConfig]):
         self.pending.clear()
         self.next_publish = 0.0
 
-    def _on_ground_truth(self, msg: Any) -> None:
-        self.pending.append((ros.seconds(msg.header.stamp), ros.pose2d(msg.pose)))
-
-    def _on_odom(self, msg: Any) -> None:
-        self.pending.append((ros.seconds(msg.header.stamp), ros.pose2d(msg.pose.pose)))
+    def _on_pose(self, msg: Any) -> None:
+        self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
 
     def step(self, now: float) -> None:
         while self.pending:
@@ -133,7 +144,7 @@ class MapperService(Service[MapperConfig]):
         if now >= self.next_publish:
             self.next_publish = now + 1.0 / self.config.publish_rate_hz
             self._publish(now)
-        if self.config.checkpoint_period_s > 0 and now >= self.next_checkpoint:
+        if not self.slam_mode and self.config.checkpoint_period_s > 0 and now >= self.next_checkpoint:
             self.next_checkpoint = now + self.config.checkpoint_period_s
             if self.scans != self.checkpointed_scans:
                 self._checkpoint()
@@ -180,7 +191,9 @@ class MapperService(Service[MapperConfig]):
 
     def _integrate(self, scan: Any) -> None:
         stamp = ros.seconds(scan.header.stamp)
-        pose = self.poses.at(stamp)
+        # SLAM's pose of a scan's time comes out in the same lockstep round as the scan (after it): in slam mode
+        # the newest pose, at most 0.15 s older, stands in for it (the pose follows odometry at 20 Hz).
+        pose = self.poses.at(stamp, 0.15 if self.config.pose_source == "slam" else 0.05)
         if pose is None:
             self.skipped += 1
             if self.skipped in (1, 10, 100) or self.skipped % 1000 == 0:
@@ -191,15 +204,45 @@ class MapperService(Service[MapperConfig]):
         n = len(scan.ranges)
         angles = scan.angle_min + scan.angle_increment * np.arange(n)
         ranges = np.asarray(scan.ranges, dtype=np.float64)
+        if self.slam_mode:
+            ok = (
+                np.isfinite(ranges)
+                & (ranges >= scan.range_min)
+                & (ranges < min(scan.range_max, self.config.obstacle_range_m))
+            )
+            local = np.column_stack((ranges[ok] * np.cos(angles[ok]), ranges[ok] * np.sin(angles[ok])))
+            self.obstacles = (pose * self.laser).transform_points(local)
+            self.scans += 1
+            return
         max_range = min(float(scan.range_max), self.config.max_range_m)
         self.grid.integrate_scan(pose * self.laser, angles, ranges, max_range, min_range_m=float(scan.range_min))
         self.scans += 1
+
+    def occupancy(self) -> Any:
+        """(H, W) int8 occupancy the costmap inflates (0..100, −1 unknown): the own map's states (scan mode), or
+        SLAM's map resampled onto the grid with the obstacle layer's returns marked occupied (slam mode)."""
+        if not self.slam_mode:
+            return self.grid.states()
+        assert self.static is not None
+        occ = np.full(self.grid.shape, -1, dtype=np.int8)
+        msg = self.static.latest()
+        if msg is not None:
+            cells, frame = ros.grid_frame(msg)
+            if self._centres is None:
+                rows, cols = np.indices(self.grid.shape)
+                self._centres = self.frame.cells_to_world(np.column_stack((rows.ravel(), cols.ravel())))
+            occ = frame.values_at(cells, self._centres, outside=-1).astype(np.int8).reshape(self.grid.shape)
+        if len(self.obstacles):
+            idx = self.frame.world_to_cells(self.obstacles)
+            inside = (idx[:, 0] >= 0) & (idx[:, 0] < occ.shape[0]) & (idx[:, 1] >= 0) & (idx[:, 1] < occ.shape[1])
+            occ[idx[inside, 0], idx[inside, 1]] = 100
+        return occ
 
     def costmap(self) -> Any:
         """The current inflated costmap, (H, W) int8 (0..100, −1 unknown)."""
         cfg = self.config
         return inflation_costmap(
-            self.grid.states(),
+            self.occupancy(),
             self.grid.resolution_m,
             cfg.robot_radius_m,
             cfg.inflation_radius_m,
@@ -209,13 +252,22 @@ class MapperService(Service[MapperConfig]):
     def _publish(self, now: float) -> None:
         origin = (self.grid.origin_m[0], self.grid.origin_m[1])
         res = self.grid.resolution_m
-        self.map_pub.put(ros.occupancy_grid(now, "map", self.grid.to_ros(), res, origin))
+        if self.map_pub is not None:
+            self.map_pub.put(ros.occupancy_grid(now, "map", self.grid.to_ros(), res, origin))
         self.costmap_pub.put(ros.occupancy_grid(now, "map", self.costmap(), res, origin))
 
     def save(self, yaml_path: str | Path) -> Path:
-        """Write the map as trinary PGM + YAML; returns the YAML path."""
-        origin = (self.grid.origin_m[0], self.grid.origin_m[1], 0.0)
-        return write_ros_map(yaml_path, self.grid.states(), self.grid.resolution_m, origin)
+        """Write the map (in slam mode: SLAM's newest) as trinary PGM + YAML; returns the YAML path."""
+        grid = self.grid
+        if self.static is not None:
+            msg = self.static.latest()
+            if msg is None:
+                raise ValueError("no map from SLAM yet")
+            info = msg.info
+            origin_xy = (info.origin.position.x, info.origin.position.y)
+            grid = OccupancyGrid.from_ros(msg.data, info.width, info.height, info.resolution, origin_xy)
+        origin = (grid.origin_m[0], grid.origin_m[1], 0.0)
+        return write_ros_map(yaml_path, grid.states(), grid.resolution_m, origin)
 
     def _on_save(self, request: Any) -> Any:
         """``save_map``: write the map to a path inside ``maps_dir`` (given relative to it; default: the
@@ -236,5 +288,9 @@ class MapperService(Service[MapperConfig]):
 
     def deactivate(self) -> None:
         if self.config.save_path:
-            written = self.save(self.config.save_path)
-            self.log.info("map saved to %s (%d scans integrated)", written, self.scans)
+            try:
+                written = self.save(self.config.save_path)
+            except ValueError as exc:
+                self.log.warning("map not saved to %s: %s", self.config.save_path, exc)
+                return
+            self.log.info("map saved to %s (%d scans used)", written, self.scans)

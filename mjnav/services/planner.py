@@ -50,7 +50,7 @@ class PlannerConfig:
         rate_hz: loop rate (sim time).
         algorithm: any of :data:`mjnav.planning.ALGORITHMS` (``jps`` falls back to ``astar`` — it takes no cost grid).
         heuristic, connectivity, weights: passed to :func:`~mjnav.planning.plan_grid`.
-        pose_source: ``ground_truth`` or ``odom`` (the plan is in ``map``; odom drifts from it).
+        pose_source: ``slam`` (SLAM's ``pose``), ``ground_truth`` or ``odom`` (the plan is in ``map``; odom drifts).
         cost_weight: relative extra cost of crossing a cell at cost 98 (1 = twice its length; keeps paths off walls).
         unknown_cost: relative extra cost of crossing an unknown cell.
         start_clearance_m: free a disc of this radius around the robot before planning (it may stand in the
@@ -69,7 +69,7 @@ class PlannerConfig:
     heuristic: str = "octile"
     connectivity: int = 8
     weights: tuple[float, float] = (1.0, 1.0)
-    pose_source: Literal["ground_truth", "odom"] = "ground_truth"
+    pose_source: Literal["slam", "ground_truth", "odom"] = "slam"
     cost_weight: float = 2.0
     unknown_cost: float = 0.5
     start_clearance_m: float = 0.25
@@ -123,7 +123,7 @@ class PlannerService(Service[PlannerConfig]):
         self.cancels = self.bus.subscribe("cancel")
         self.costmap = self.bus.subscribe("costmap")
         self.status_in = self.bus.subscribe("goal_status")
-        self.pose = self.bus.subscribe(self.config.pose_source)
+        self.pose = self.bus.subscribe(ros.POSE_TOPICS[self.config.pose_source])
         self.plan_pub = self.bus.publisher("plan")
         self.status_pub = self.bus.publisher("goal_status")
         self.status_cls = msg_class(_STATUS)
@@ -254,7 +254,7 @@ class PlannerService(Service[PlannerConfig]):
         occupied, cost = planning_grid(
             cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost
         )
-        robot = ros.pose2d(pose_msg.pose.pose if self.config.pose_source == "odom" else pose_msg.pose)
+        robot = ros.pose_of(pose_msg)
         start = frame.world_to_cell(robot.x, robot.y)
         target = frame.world_to_cell(goal.pose.x, goal.pose.y)
         if frame.contains(*start) and not cells[start] >= 100:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -60,6 +60,10 @@ class SimConfig:
         lockstep_participants: participants that must be present before sim time starts (``mjnav up`` fills in the
             stack's sim-time services, ``mjnav demo`` adds its mission client).
         lockstep_timeout_s: wall seconds a participant may hold sim time before it is named and left out.
+        publish_ground_truth: publish the true pose on ``ground_truth`` (for tools and comparisons; the navigation
+            services run on SLAM's ``pose``). The evaluation channel ``truth`` is always published.
+        odom_noise_scale: multiplies every wheel-odometry error (radius, wheel base, slip): 1 = the default model
+            (0.3 % radius, 1 % wheel base, 1 % slip), 0 = perfect odometry, 3 = three times as bad.
     """
 
     world: str = "rooms"
@@ -82,10 +86,14 @@ class SimConfig:
     lockstep: bool = True
     lockstep_participants: tuple[str, ...] = ()
     lockstep_timeout_s: float = 10.0
+    publish_ground_truth: bool = True
+    odom_noise_scale: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.rtf >= 0.0:
             raise ValueError(f"rtf must be >= 0 (0 = as fast as possible), got {self.rtf}")
+        if not 0.0 <= self.odom_noise_scale <= 20.0:
+            raise ValueError(f"odom_noise_scale must be in [0, 20], got {self.odom_noise_scale}")
         for name in (
             "clock_rate_hz",
             "odom_rate_hz",
@@ -136,8 +144,9 @@ class SimBridge:
         self._cmd = bus.subscribe("cmd_vel")
         self._pub = {
             name: bus.publisher(name)
-            for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "ground_truth", "sim_status")
+            for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "truth", "sim_status")
         }
+        self._ground_truth = bus.publisher("ground_truth") if config.publish_ground_truth else None
         # Only worlds with moving bodies (the warehouse's carts) declare the topic.
         self._obstacles = bus.publisher("obstacles") if sim.moving_body_names else None
         self._obstacles_due = _Every(config.obstacles_rate_hz)
@@ -186,7 +195,10 @@ class SimBridge:
             self._pub["tf"].put(ros.tf_message(ros.transform_stamped(stamp, "odom", "base_link", est.pose)))
             wheels = sim.wheel_states()
             self._pub["joint_states"].put(ros.joint_state(t, wheels.names, wheels.position_rad, wheels.velocity_radps))
-            self._pub["ground_truth"].put(ros.pose_stamped(t, "map", sim.ground_truth_pose()))
+            truth = ros.pose_stamped(t, "map", sim.ground_truth_pose())
+            self._pub["truth"].put(truth)
+            if self._ground_truth is not None:
+                self._ground_truth.put(truth)
         # Scans after the poses of the same tick, so a mapper always finds the pose of a scan's stamp.
         scan = sim.pop_scan()
         if scan is not None:
@@ -244,6 +256,7 @@ class SimService(Service[SimConfig]):
 
     def configure(self) -> None:
         from mjnav.sim import LidarConfig, Recorder, SimRunner, Simulator
+        from mjnav.sim.odometry import OdometryConfig
 
         cfg = self.config
         lidar = LidarConfig(
@@ -253,7 +266,17 @@ class SimService(Service[SimConfig]):
             range_max_m=cfg.lidar_range_max_m,
             noise_std_m=cfg.lidar_noise_std_m,
         )
-        self.sim = Simulator(cfg.world, seed=cfg.seed, lidar=lidar, watchdog_timeout_s=cfg.watchdog_timeout_s)
+        base = OdometryConfig()
+        k = cfg.odom_noise_scale
+        odometry = replace(
+            base,
+            wheel_radius_error_std=k * base.wheel_radius_error_std,
+            wheel_separation_error_std=k * base.wheel_separation_error_std,
+            slip_noise_std=k * base.slip_noise_std,
+        )
+        self.sim = Simulator(
+            cfg.world, seed=cfg.seed, lidar=lidar, odometry=odometry, watchdog_timeout_s=cfg.watchdog_timeout_s
+        )
         self.bridge = SimBridge(self.sim, self.bus, cfg)
         self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
         self.bridge.attach(self.runner)

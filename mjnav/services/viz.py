@@ -23,6 +23,7 @@ from typing import Any
 from mjnav.bus import NoReply, RemoteError
 from mjnav.msgs import endpoint
 from mjnav.runtime import Service
+from mjnav.viz.view import POSE_TOPICS
 
 #: Per-topic draw failures logged in full before they are only counted.
 _LOG_FIRST = 5
@@ -46,7 +47,8 @@ class VizConfig:
         open_browser: open the viewer in a browser when a display exists and the stack is not headless.
         static_html: write a self-contained HTML snapshot here when stopping ("" = none).
         static_html_period_s: also rewrite the snapshot this often, wall seconds (0 = only when stopping).
-        pose_topic: ``ground_truth`` (true pose, map frame) or ``odom`` (wheel odometry, drifts).
+        pose_topic: ``truth`` (true pose, the evaluation channel), ``pose`` (SLAM's estimate), ``ground_truth``
+            (true pose, when the sim publishes it) or ``odom`` (wheel odometry, drifts).
         scan_point_size_m: drawn size of one scan return, metres.
         draw_costmap: draw the ``costmap`` topic over the map.
         grid_rate_hz: the map and costmap (a PNG texture each, the costly layers) are redrawn at most this often,
@@ -64,7 +66,7 @@ class VizConfig:
     open_browser: bool = True
     static_html: str = ""
     static_html_period_s: float = 0.0
-    pose_topic: str = "ground_truth"
+    pose_topic: str = "truth"
     scan_point_size_m: float = 0.06
     draw_costmap: bool = True
     grid_rate_hz: float = 2.0
@@ -81,8 +83,8 @@ class VizConfig:
         for name in ("world_timeout_s", "static_html_period_s"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.pose_topic not in ("ground_truth", "odom"):
-            raise ValueError(f"pose_topic must be 'ground_truth' or 'odom', got {self.pose_topic!r}")
+        if self.pose_topic not in POSE_TOPICS:
+            raise ValueError(f"pose_topic must be one of {list(POSE_TOPICS)}, got {self.pose_topic!r}")
         if not self.scan_point_size_m > 0.0:
             raise ValueError(f"scan_point_size_m must be > 0, got {self.scan_point_size_m}")
         if not self.host:

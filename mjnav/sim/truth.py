@@ -14,7 +14,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from mjnav.mapping.frame import GridFrame
 from mjnav.sim.model import ROBOT_GEOM_GROUP
@@ -92,3 +92,39 @@ def shortest_length_m(
     frame = GridFrame(resolution_m, (x0, y0), shape)
     obstacles = static_occupancy(sim.model, sim.data, frame)
     return shortest_path_length_m(obstacles, frame, start_xy, goal_xy, sim.robot_radius_m)
+
+
+def map_accuracy(
+    world: str | Path, occupancy: ArrayLike, frame: GridFrame, *, occupied_at: int = 65
+) -> tuple[float, float]:
+    """How well a built occupancy map matches the world's true static obstacles, within one cell.
+
+    Args:
+        world: the world the map was built in.
+        occupancy: (H, W) ROS occupancy values of the map (0..100, −1 unknown).
+        frame: the map's placement (map = world frame).
+        occupied_at: values at or above this count as occupied.
+
+    Returns:
+        ``(recall, precision)``: the share of the truly occupied cells the map observed (known cells) that have an
+        occupied map cell within one cell, and the share of the map's occupied cells that have a truly occupied
+        cell within one cell. NaN where there is nothing to count.
+    """
+    from scipy.ndimage import binary_dilation
+
+    from mjnav.sim.simulator import Simulator
+
+    occ = np.asarray(occupancy)
+    sim = Simulator(world, lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    true = static_occupancy(sim.model, sim.data, frame)
+    built = occ >= occupied_at
+    square = np.ones((3, 3), dtype=bool)
+    observed_true = true & (occ >= 0)
+    recall = (
+        float((observed_true & binary_dilation(built, square)).sum() / observed_true.sum())
+        if observed_true.any()
+        else math.nan
+    )
+    precision = float((built & binary_dilation(true, square)).sum() / built.sum()) if built.any() else math.nan
+    return recall, precision

@@ -55,6 +55,11 @@ GOAL_COLOURS = {0: 0xF2C200, 1: 0xF2C200, 2: 0xF2C200, 3: 0x00C2C7, 4: 0x16C60C,
 _ROT_X_90 = np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1.0]])  # y axis → z axis
 
 
+#: Topics that can move the drawn robot: the true pose (evaluation channel, or the sim's ``ground_truth``),
+#: SLAM's estimate, wheel odometry.
+POSE_TOPICS = ("truth", "pose", "ground_truth", "odom")
+
+
 class _Plane(mg.Geometry):
     """three.js PlaneGeometry: a ``width × height`` rectangle in the xy plane facing +z, UVs along +x and +y."""
 
@@ -111,7 +116,7 @@ class NavView:
     Args:
         scene: where to draw (offline, or mirrored to a meshcat server).
         scan_point_size_m: rendered size of a scan point, metres.
-        pose_topic: which topic moves the robot: ``ground_truth`` (map frame, default) or ``odom`` (drifts).
+        pose_topic: which topic moves the robot: one of :data:`POSE_TOPICS` (``truth`` by default).
     """
 
     #: Topics :meth:`handle` understands, besides the pose topic.
@@ -126,9 +131,9 @@ class NavView:
         "obstacles",
     )
 
-    def __init__(self, scene: Scene, *, scan_point_size_m: float = 0.06, pose_topic: str = "ground_truth") -> None:
-        if pose_topic not in ("ground_truth", "odom"):
-            raise ValueError(f"pose_topic must be 'ground_truth' or 'odom', got {pose_topic!r}")
+    def __init__(self, scene: Scene, *, scan_point_size_m: float = 0.06, pose_topic: str = "truth") -> None:
+        if pose_topic not in POSE_TOPICS:
+            raise ValueError(f"pose_topic must be one of {list(POSE_TOPICS)}, got {pose_topic!r}")
         self.scene = scene
         self.scan_point_size_m = scan_point_size_m
         self.pose_topic = pose_topic
@@ -274,7 +279,7 @@ class NavView:
     def handle(self, topic_name: str, msg: Any) -> bool:
         """Draw ``msg`` received on topic ``topic_name``; returns False for topics the view does not draw."""
         if topic_name == self.pose_topic:
-            pose = msg.pose if topic_name == "ground_truth" else msg.pose.pose
+            pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose  # PoseStamped, or with covariance/Odometry
             self.set_robot_pose(pose_msg_matrix(pose))
         elif topic_name == "scan":
             self.draw_scan(msg)

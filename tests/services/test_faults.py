@@ -25,6 +25,7 @@ from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import msg_class
 from mjnav.msgs.ros import seconds as ros_seconds
 from mjnav.runtime.mission import GoalOutcome, MissionClient
+from mjnav.sim.worlds import world_info
 from tests.conftest import REPO, free_port
 from tests.services.test_navigation import SERVICES, up_process
 
@@ -36,12 +37,12 @@ GOAL = (3.8, 2.2)  # rooms: from the start, through a door, ~7 m
 def stack(*extra: str) -> Iterator[tuple[Bus, MissionClient, list[str]]]:
     """The shipped stack in the rooms world at the fastest lockstep rate, with the given extra `mjnav up` args;
     yields a bus on its router, a mission client (a lockstep participant) and the launcher's output lines."""
-    args = ["--set", "sim.rtf=0", "--set", 'sim.lockstep_participants=["mapper", "planner", "smoother", '
+    args = ["--set", "sim.rtf=0", "--set", 'sim.lockstep_participants=["slam", "mapper", "planner", "smoother", '
             '"controller", "mission"]', "--seed", "3", *extra]  # fmt: skip
     with up_process(*args) as (port, _proc, lines):
         bus = Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",)))
         try:
-            client = MissionClient(bus)
+            client = MissionClient(bus, initial_pose=world_info("rooms").start)
             assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
             yield bus, client, lines
         finally:
@@ -72,7 +73,7 @@ def _known_cells(msg: Any) -> int:
     return int(np.count_nonzero(np.asarray(msg.data) >= 0))
 
 
-@pytest.mark.parametrize("service", ["mapper", "planner", "smoother"])
+@pytest.mark.parametrize("service", ["slam", "mapper", "planner", "smoother"])
 def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(service: str) -> None:
     with stack() as (bus, client, lines):
         status, first = _status_of(bus, service)
@@ -94,9 +95,9 @@ def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(servi
     assert f"{service} exited with code -9" in text and "Traceback" not in text
     if service == "planner":
         assert "resuming goal 1" in text
-    if service == "mapper":
-        assert "resumed the map from checkpoint" in text
-        # The restarted mapper's first map holds (nearly) everything known before the kill: at most the scans of
+    if service == "slam":
+        assert "resumed SLAM from checkpoint" in text
+        # The restarted SLAM's first map holds (nearly) everything known before the kill: at most the scans of
         # one checkpoint period are lost, and new scans only add cells.
         after = [m for m in maps if ros_seconds(m.header.stamp) > ros_seconds(restarted.header.stamp)]
         assert after and _known_cells(after[0]) >= 0.9 * known_before, (known_before, _known_cells(after[0]))

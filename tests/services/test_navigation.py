@@ -26,9 +26,10 @@ from mjnav.msgs.ros import seconds as ros_seconds
 from mjnav.runtime.mission import MissionClient
 from mjnav.sim import Simulator
 from mjnav.sim.truth import static_occupancy
+from mjnav.sim.worlds import world_info
 from tests.conftest import REPO, free_port
 
-SERVICES = {"sim", "mapper", "planner", "smoother", "controller", "viz"}
+SERVICES = {"sim", "slam", "mapper", "planner", "smoother", "controller", "viz"}
 STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
 RTF = 4.0
 
@@ -73,10 +74,11 @@ def running_stack(*sets: str) -> Iterator[tuple[Bus, MissionClient, subprocess.P
     args = ["--set", f"sim.rtf={RTF}"]
     for item in sets:
         args += ["--set", item]
+    world = next((item.split("=", 1)[1] for item in sets if item.startswith("sim.world=")), "rooms")
     with up_process(*args) as (port, proc, lines):
         bus = Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",)))
         try:
-            client = MissionClient(bus)
+            client = MissionClient(bus, initial_pose=world_info(world).start)  # where SLAM starts
             assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
             assert client.truth.wait(60.0) is not None
             yield bus, client, proc, lines
@@ -131,7 +133,13 @@ def test_demo_reaches_two_goals_in_the_rooms_world_from_an_unknown_map(tmp_path:
 
 def test_unreachable_and_occupied_goals_fail_with_the_right_reason(tmp_path: Path) -> None:
     prior = _true_map("rooms", tmp_path / "prior.yaml")
-    with running_stack(f"mapper.prior_map={json.dumps(str(prior))}") as (bus, client, _proc, lines):
+    # A saved map: SLAM localizes on it (the costmap's static layer is the map from the start).
+    with running_stack("slam.mode=localization", f"slam.map_file={json.dumps(str(prior))}") as (
+        bus,
+        client,
+        _proc,
+        lines,
+    ):
         outside = client.run_goal(40.0, 40.0, timeout_s=30.0, wall_timeout_s=60.0)
         assert (outside.result, outside.error_code) == ("failed", STATUS.ERROR_OUTSIDE_MAP), outside
         in_wall = client.run_goal(0.0, 0.0, timeout_s=30.0, wall_timeout_s=60.0)  # the centre of the rooms' cross
@@ -215,11 +223,12 @@ def _nan_laden(msgtype: str, rng: np.random.Generator) -> object:
 # Keys each service subscribes to (every service on sim time also subscribes to clock).
 SUBSCRIBED = {
     "sim": ["cmd_vel"],
-    "mapper": ["clock", "scan", "ground_truth"],
-    "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "ground_truth"],
+    "slam": ["clock", "odom", "scan", "initialpose"],
+    "mapper": ["clock", "scan", "pose", "map"],
+    "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "pose"],
     "smoother": ["clock", "plan", "costmap"],
-    "controller": ["clock", "path", "ground_truth", "scan", "goal_status", "map"],
-    "viz": ["ground_truth", "scan", "map", "plan", "path", "costmap", "goal", "goal_status", "sim_status"],
+    "controller": ["clock", "path", "pose", "scan", "goal_status", "map"],
+    "viz": ["truth", "scan", "map", "plan", "path", "costmap", "goal", "goal_status", "sim_status"],
 }
 FUZZ_PER_KEY = 1000
 

@@ -71,7 +71,14 @@ def _plan_cells(h: Harness) -> np.ndarray:
 @pytest.fixture
 def planner(peer: Peer) -> Harness:
     """Planner on a free 4 x 4 m costmap, robot at (0.55, 2.05): no heartbeats within the tests' time span."""
-    h = Harness(PlannerService, peer, ("goal_status", "plan"), replan_period_s=2.0, heartbeat_period_s=100.0)
+    h = Harness(
+        PlannerService,
+        peer,
+        ("goal_status", "plan"),
+        pose_source="ground_truth",
+        replan_period_s=2.0,
+        heartbeat_period_s=100.0,
+    )
     h.send("costmap", _costmap(0.0, _free()))
     h.send("ground_truth", ros.pose_stamped(0.0, "map", Pose2D(0.55, 2.05, 0.0)))
     return h
@@ -198,7 +205,14 @@ def test_smoother_keeps_every_point_inside_its_clearance_box(peer: Peer) -> None
 
 
 def test_controller_goal_states(peer: Peer) -> None:
-    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), path_timeout_s=3.0, pose_timeout_s=0.5)
+    h = Harness(
+        ControllerService,
+        peer,
+        ("cmd_vel", "goal_status"),
+        pose_source="ground_truth",
+        path_timeout_s=3.0,
+        pose_timeout_s=0.5,
+    )
     step = _scanning(h)
     line = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31)]
     # No goal: zero command.
@@ -253,7 +267,7 @@ def test_controller_goal_states(peer: Peer) -> None:
 
 
 def test_controller_stops_without_a_recent_scan(peer: Peer) -> None:
-    h = Harness(ControllerService, peer, ("cmd_vel",), scan_timeout_s=0.5)
+    h = Harness(ControllerService, peer, ("cmd_vel",), pose_source="ground_truth", scan_timeout_s=0.5)
     line = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31)]
     h.send("goal_status", _status(1.0, 1, STATUS.STATE_FOLLOWING))
     h.send("path", ros.path_msg(1.0, "map", line))
@@ -273,7 +287,8 @@ def test_controller_fails_a_goal_without_progress_or_planner(peer: Peer) -> None
     """Nav2's progress checker: no 0.25 m of motion in 20 s fails the goal with ERROR_TIMEOUT; so does a planner
     whose heartbeat stopped for planner_timeout_s."""
     h = Harness(
-        ControllerService, peer, ("cmd_vel", "goal_status"), progress_timeout_s=20.0, progress_radius_m=0.25,
+        ControllerService, peer, ("cmd_vel", "goal_status"), pose_source="ground_truth", progress_timeout_s=20.0,
+        progress_radius_m=0.25,
         planner_timeout_s=15.0, path_timeout_s=100.0, pose_timeout_s=100.0,
     )  # fmt: skip
     step = _scanning(h)
@@ -334,7 +349,7 @@ def test_a_restarted_planner_resumes_its_goal_under_the_same_id(
     peer: Peer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv("MJNAV_STATE_DIR", str(tmp_path))
-    first = Harness(PlannerService, peer, ("goal_status", "plan"), heartbeat_period_s=100.0)
+    first = Harness(PlannerService, peer, ("goal_status", "plan"), pose_source="ground_truth", heartbeat_period_s=100.0)
     first.send("costmap", _costmap(0.0, _free()))
     first.send("ground_truth", ros.pose_stamped(0.0, "map", Pose2D(0.55, 2.05, 0.0)))
     first.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
@@ -342,7 +357,9 @@ def test_a_restarted_planner_resumes_its_goal_under_the_same_id(
     first.step(0.0, {"goal_status": 6, "plan": 2})
     # A new process (same state directory) takes over: goal 2, same target, same id; the next goal gets id 3.
     first.service.bus.close()  # the first process is gone (its subscriptions must not answer for the second's)
-    second = Harness(PlannerService, peer, ("goal_status", "plan"), heartbeat_period_s=100.0)
+    second = Harness(
+        PlannerService, peer, ("goal_status", "plan"), pose_source="ground_truth", heartbeat_period_s=100.0
+    )
     assert second.service.goal is not None and second.service.goal.goal_id == 2
     assert (second.service.goal.pose.x, second.service.goal.pose.y) == (3.45, 1.05)
     second.send("costmap", _costmap(0.1, _free()))
@@ -357,7 +374,7 @@ def test_a_restarted_planner_resumes_its_goal_under_the_same_id(
     second.send("cancel", msg_class("std_msgs/msg/Empty")())
     second.step(0.4, {"goal_status": 6})
     second.service.bus.close()
-    third = Harness(PlannerService, peer, ("goal_status",))
+    third = Harness(PlannerService, peer, ("goal_status",), pose_source="ground_truth")
     assert third.service.goal is None and third.service.next_id == 4
 
 
@@ -367,7 +384,15 @@ def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
     monkeypatch.setenv("MJNAV_STATE_DIR", str(tmp_path / "state"))
     (tmp_path / "state").mkdir()
     maps = tmp_path / "maps"
-    first = Harness(MapperService, peer, ("map",), checkpoint_period_s=1.0, maps_dir=str(maps))
+    first = Harness(
+        MapperService,
+        peer,
+        ("map",),
+        map_source="scan",
+        pose_source="ground_truth",
+        checkpoint_period_s=1.0,
+        maps_dir=str(maps),
+    )
     scan = ros.laser_scan(
         0.0, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / 90, scan_time_s=0.1,
         range_min_m=0.05, range_max_m=12.0, ranges_m=np.full(90, 2.0),
@@ -378,7 +403,7 @@ def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
     known = np.count_nonzero(first.service.grid.log_odds)
     assert known > 1000
     first.service.bus.close()
-    second = Harness(MapperService, peer, ("map",), maps_dir=str(maps))
+    second = Harness(MapperService, peer, ("map",), map_source="scan", pose_source="ground_truth", maps_dir=str(maps))
     np.testing.assert_array_equal(second.service.grid.log_odds, first.service.grid.log_odds)
     # save_map: relative paths land in maps_dir; anything outside it is refused and nothing is written.
     string = msg_class("std_msgs/msg/String")
@@ -388,3 +413,70 @@ def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
         with pytest.raises(RemoteError, match="maps_dir"):
             second.world.call("save_map", string(data=bad), timeout_s=10.0)
     assert not (tmp_path / "evil.yaml").exists()
+
+
+def _ring_scan(t: float, centre: Pose2D, radius: float) -> object:
+    """The scan of a robot at ``centre`` (map) inside a circular wall of ``radius`` around the origin, 360 beams."""
+    n = 360
+    a = -math.pi + 2 * math.pi * np.arange(n) / n
+    heading = centre.theta + a
+    # Ray from (cx, cy) along heading meets |p| = radius at s = -b + sqrt(b² - c).
+    b = centre.x * np.cos(heading) + centre.y * np.sin(heading)
+    c = centre.x**2 + centre.y**2 - radius**2
+    ranges = -b + np.sqrt(b * b - c)
+    return ros.laser_scan(
+        t, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / n, scan_time_s=0.1,
+        range_min_m=0.05, range_max_m=12.0, ranges_m=ranges,
+    )  # fmt: skip
+
+
+def test_slam_waits_for_initialpose_then_publishes_pose_map_and_tf(peer: Peer) -> None:
+    """No pose before initialpose; from it on, pose = map→odom ∘ odometry in the map frame, the map, map→odom on
+    tf and the static transforms."""
+    from mjnav.services.slam import SlamService
+
+    h = Harness(SlamService, peer, ("pose", "map", "tf", "tf_static"), laser_offset_m=(0.0, 0.0, 0.2))
+    start = Pose2D(1.0, 0.5, 0.3)
+    h.send("odom", ros.odometry(0.0, Pose2D(0.0, 0.0, 0.0), 0.0, 0.0))
+    h.send("scan", _ring_scan(0.0, start, 4.0))
+    h.step(0.0, {"tf_static": 1})
+    assert h.received["pose"] == [] and h.received["map"] == []  # not started: no initial pose yet
+    cov = np.diag([0.01, 0.01, 0.003])
+    h.send("initialpose", ros.pose_with_covariance_stamped(0.05, "map", start, cov))
+    h.send("odom", ros.odometry(0.1, Pose2D(0.0, 0.0, 0.0), 0.0, 0.0))
+    h.send("scan", _ring_scan(0.1, start, 4.0))
+    h.step(0.1, {"pose": 1, "map": 1, "tf": 1})
+    est = ros.pose_of(h.received["pose"][-1])
+    assert math.hypot(est.x - start.x, est.y - start.y) < 0.02 and abs(est.theta - start.theta) < 0.01
+    tf = h.received["tf"][-1].transforms[0]
+    assert (tf.header.frame_id, tf.child_frame_id) == ("map", "odom")
+    statics = {t.child_frame_id: t.transform.translation.z for t in h.received["tf_static"][-1].transforms}
+    assert statics == {"laser": 0.2, "imu": 0.1}
+    # The robot drives 0.3 m along its heading: odometry says so, the scans agree; pose follows.
+    moved = Pose2D(start.x + 0.3 * math.cos(0.3), start.y + 0.3 * math.sin(0.3), 0.3)
+    h.send("odom", ros.odometry(0.2, Pose2D(0.3, 0.0, 0.0), 0.0, 0.0))
+    h.send("scan", _ring_scan(0.2, moved, 4.0))
+    h.step(0.2, {"pose": 2})
+    est = ros.pose_of(h.received["pose"][-1])
+    assert math.hypot(est.x - moved.x, est.y - moved.y) < 0.03
+    grid_cells, frame = ros.grid_frame(h.received["map"][0])
+    on_wall = frame.values_at(grid_cells, np.array([[3.98, 0.0], [0.0, 3.98], [-3.98, 0.0]]), outside=-1)
+    assert np.all(on_wall >= 65)  # the ring wall is in the map, where it is
+
+
+def test_costmap_from_slams_map_with_the_newest_scan_as_obstacle_layer(peer: Peer) -> None:
+    h = Harness(MapperService, peer, ("costmap",), width_m=4.0, height_m=4.0, origin_m=(0.0, 0.0), resolution_m=0.1)
+    static = np.zeros((40, 40), dtype=np.int8)
+    static[:, 30] = 100  # a wall at x = 3.0..3.1 in SLAM's map (same frame here)
+    h.send("map", _costmap(0.0, static))
+    h.send("pose", ros.pose_with_covariance_stamped(0.0, "map", Pose2D(1.0, 2.0, 0.0), np.eye(3) * 1e-4))
+    # A box 1 m ahead (x = 2.0) that the map does not have yet: the newest scan's returns mark it.
+    scan = ros.laser_scan(
+        0.0, "laser", angle_min_rad=-0.1, angle_increment_rad=0.05, scan_time_s=0.1, range_min_m=0.05,
+        range_max_m=12.0, ranges_m=np.full(5, 1.0),
+    )  # fmt: skip
+    h.send("scan", scan)
+    h.step(0.0, {"costmap": 1})
+    cost, _frame = ros.grid_frame(h.received["costmap"][-1])
+    assert cost[20, 30] == 100 and cost[20, 20] == 100  # the map's wall; the scanned box (x = 2.0, y = 2.0)
+    assert cost[20, 10] == 0  # the robot's own cell: free

@@ -1,0 +1,287 @@
+"""The slam service: wheel odometry + lidar → the robot's pose in ``map``, the map, and ``map → odom``.
+
+Mapping mode (default) runs :class:`mjnav.estimation.slam.GraphSlam` online: each new ``scan`` is matched against
+the local map (correlative search + PL-ICP), keyframes go into a pose graph whose loop closures (branch-and-bound
+matching against older submaps) re-optimise it, and the map is re-rendered from the optimised keyframes.
+Localization mode (``mode = "localization"``) tracks the pose on a saved ROS map (``map_file``) with
+:class:`mjnav.estimation.slam.Localizer` by scan-to-map matching from ``initialpose``.
+
+Both modes start from ``initialpose`` (``geometry_msgs/PoseWithCovarianceStamped`` in ``map``, what RViz's 2D Pose
+Estimate sends; ``mjnav demo`` sends the robot's start pose, as an operator would) or from ``initial_pose`` when
+configured; until then nothing is published and the robot does not move. Every step publishes ``pose`` — the
+newest ``map → odom`` composed with the newest odometry, so the estimate follows the wheels between scans — and
+``map → odom`` on ``tf``; ``map`` goes out at ``map_rate_hz``, ``base_link → laser`` and ``base_link → imu`` on
+``tf_static`` every second (for late joiners: Zenoh keeps no latched messages).
+
+In mapping mode the SLAM state is checkpointed in the run's state directory every ``checkpoint_period_s``, so a
+restarted slam service resumes the same map and pose graph.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import pickle
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from mjnav.estimation.slam import GraphSlam, Localizer, LocalizerConfig, SlamConfig, SlamError, compose, invert
+from mjnav.geometry import Pose2D, PoseHistory
+from mjnav.mapping import OccupancyGrid, read_ros_map
+from mjnav.msgs import msg_class, ros
+from mjnav.runtime import Service
+
+
+@dataclass(frozen=True)
+class SlamServiceConfig:
+    """SLAM service settings (``services/slam.toml``).
+
+    Attributes:
+        rate_hz: loop rate (sim time); each new scan is processed at the next step, ``pose`` goes out every step.
+        mode: ``mapping`` (online graph SLAM) or ``localization`` (on ``map_file``).
+        map_file: ROS map YAML for localization mode.
+        initial_pose: (x, y, yaw) to start from without waiting for ``initialpose``; empty = wait for it.
+        initial_sigma: (σ_xy m, σ_yaw rad) assumed with ``initial_pose``.
+        laser_offset_m: lidar position in ``base_link`` (x, y, z), metres.
+        imu_offset_m: IMU position in ``base_link`` (x, y, z), metres (for ``tf_static``).
+        max_range_m: beams at or beyond this are "no return" for mapping, metres.
+        resolution_m: map cell size, metres.
+        map_rate_hz: ``map`` publications per sim second (rendering it costs more than a scan).
+        loop_closure: search for loop closures (mapping mode).
+        checkpoint_period_s: checkpoint interval (sim s) of the mapping state in the run's state directory
+            (0 = never).
+    """
+
+    rate_hz: float = 20.0
+    mode: Literal["mapping", "localization"] = "mapping"
+    map_file: str = ""
+    initial_pose: tuple[float, ...] = ()
+    initial_sigma: tuple[float, float] = (0.05, 0.05)
+    laser_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.2)
+    imu_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.1)
+    max_range_m: float = 12.0
+    resolution_m: float = 0.05
+    map_rate_hz: float = 1.0
+    loop_closure: bool = True
+    checkpoint_period_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        if self.mode == "localization" and not self.map_file:
+            raise ValueError("mode 'localization' needs map_file (a ROS map .yaml)")
+        if self.initial_pose and len(self.initial_pose) != 3:
+            raise ValueError(f"initial_pose must be [x, y, yaw] or empty, got {list(self.initial_pose)}")
+        for name in ("max_range_m", "resolution_m", "map_rate_hz"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.checkpoint_period_s >= 0:
+            raise ValueError(f"checkpoint_period_s must be >= 0, got {self.checkpoint_period_s}")
+
+
+class SlamService(Service[SlamServiceConfig]):
+    """Online SLAM or localization; the source of ``pose``, ``map`` and ``map → odom``."""
+
+    name = "slam"
+    config_class = SlamServiceConfig
+
+    def configure(self) -> None:
+        cfg = self.config
+        self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
+        self.bus.subscribe("odom", callback=self._on_odom)
+        self.scan = self.bus.subscribe("scan")
+        self.initial = self.bus.subscribe("initialpose")
+        self.pose_pub = self.bus.publisher("pose")
+        self.tf_pub = self.bus.publisher("tf")
+        self.tf_static_pub = self.bus.publisher("tf_static")
+        self.map_pub = self.bus.publisher("map")
+        self.bus.serve("slam_info", self._on_info)
+        self.slam: GraphSlam | None = None
+        self.localizer: Localizer | None = None
+        self.static_map: OccupancyGrid | None = None
+        if cfg.mode == "localization":
+            self.static_map = OccupancyGrid.from_ros_map(read_ros_map(cfg.map_file))
+            self.localizer = Localizer(self.static_map, LocalizerConfig())
+        self.scans = 0
+        self.failures = 0
+        self.map_to_odom: np.ndarray | None = None  # (x, y, θ) once the estimate started
+        self.start: tuple[np.ndarray, np.ndarray, Pose2D | None] | None = None  # (map pose, cov, odom then)
+        self._restore()
+        if self.start is None and self.map_to_odom is None and cfg.initial_pose:
+            sx, syaw = cfg.initial_sigma
+            self.start = (np.asarray(cfg.initial_pose, dtype=float), np.diag([sx**2, sx**2, syaw**2]), None)
+
+    def activate(self) -> None:
+        self.odom = PoseHistory(horizon_s=5.0)
+        self.pending.clear()
+        self.next_map = 0.0
+        self.next_static = 0.0
+        self.next_checkpoint = self.config.checkpoint_period_s
+
+    def _on_odom(self, msg: Any) -> None:
+        self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
+
+    # ------------------------------------------------------------------------------------------------ loop
+
+    def step(self, now: float) -> None:
+        while self.pending:
+            self.odom.add(*self.pending.popleft())
+        for msg in self.initial.drain():
+            self._set_initial(msg)
+        scan = self.scan.take()
+        if scan is not None:
+            self._process(scan)
+        if now >= self.next_static:
+            self.next_static = now + 1.0
+            self._publish_static(now)
+        if self.map_to_odom is None:
+            return
+        odom = self.odom.latest()
+        if odom is not None:
+            pose = Pose2D(*compose(self.map_to_odom, (odom[1].x, odom[1].y, odom[1].theta)))
+            self.pose_pub.put(ros.pose_with_covariance_stamped(now, "map", pose, self._covariance()))
+            self.tf_pub.put(ros.tf_message(ros.transform_stamped(now, "map", "odom", Pose2D(*self.map_to_odom))))
+        if now >= self.next_map:
+            self.next_map = now + 1.0 / self.config.map_rate_hz
+            self._publish_map(now)
+        if self.slam is not None and self.config.checkpoint_period_s > 0 and now >= self.next_checkpoint:
+            self.next_checkpoint = now + self.config.checkpoint_period_s
+            self._checkpoint()
+
+    def _set_initial(self, msg: Any) -> None:
+        if msg.header.frame_id not in ("", "map"):
+            self.log.warning("initialpose in frame %r ignored: it must be in 'map'", msg.header.frame_id)
+            return
+        pose = ros.pose_of(msg)
+        cov = ros.planar_covariance(msg)
+        latest = self.odom.latest()
+        self.start = (np.array([pose.x, pose.y, pose.theta]), cov, None if latest is None else latest[1])
+        if self.localizer is not None:
+            odom = None if latest is None else (latest[1].x, latest[1].y, latest[1].theta)
+            self.localizer.set_pose(self.start[0], _positive(cov), odom)
+        elif self.slam is not None:
+            self.log.warning("initialpose ignored: mapping already started (restart slam to map afresh)")
+            return
+        self.log.info("initial pose (%.2f, %.2f, %.1f°)", pose.x, pose.y, math.degrees(pose.theta))
+
+    def _process(self, scan: Any) -> None:
+        stamp = ros.seconds(scan.header.stamp)
+        odom = self.odom.at(stamp)
+        if odom is None or (self.start is None and self.slam is None):
+            return  # no odometry at the scan's time yet, or not started (waiting for initialpose)
+        n = len(scan.ranges)
+        angles = scan.angle_min + scan.angle_increment * np.arange(n)
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        kwargs = {"range_min_m": float(scan.range_min), "range_max_m": float(scan.range_max)}
+        odom_xyt = (odom.x, odom.y, odom.theta)
+        try:
+            if self.localizer is not None:
+                if not self.localizer.initialised:
+                    return
+                est = self.localizer.update(odom_xyt, ranges, angles, **kwargs)
+            else:
+                if self.slam is None:
+                    self.slam = self._new_slam(odom)
+                est = self.slam.update(stamp, odom_xyt, ranges, angles, **kwargs)
+        except SlamError as exc:
+            self.failures += 1
+            if self.failures <= 10 or self.failures % 100 == 0:
+                self.log.warning("scan at %.3f s not used (%d so far): %s", stamp, self.failures, exc)
+            return
+        self.scans += 1
+        self.map_to_odom = np.asarray(est.map_to_odom, dtype=float)
+        self.covariance = np.asarray(est.covariance, dtype=float)
+
+    def _new_slam(self, odom: Pose2D) -> GraphSlam:
+        assert self.start is not None
+        cfg = self.config
+        start, _cov, odom_then = self.start
+        # The initial pose was given at odometry odom_then; the robot may have moved since.
+        initial = start if odom_then is None else compose(start, _between(odom_then, odom))
+        slam_cfg = SlamConfig(
+            map_resolution_m=cfg.resolution_m,
+            max_range_m=cfg.max_range_m,
+            laser_offset=(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0),
+            loop_candidates=SlamConfig().loop_candidates if cfg.loop_closure else 0,
+        )
+        self.log.info("mapping from (%.2f, %.2f, %.1f°)", initial[0], initial[1], math.degrees(initial[2]))
+        return GraphSlam(slam_cfg, initial_pose=initial)
+
+    def _covariance(self) -> Any:
+        cov = getattr(self, "covariance", None)
+        return np.zeros((3, 3)) if cov is None else cov
+
+    # --------------------------------------------------------------------------------------------- outputs
+
+    def _publish_map(self, now: float) -> None:
+        grid = self.slam.occupancy_grid() if self.slam is not None else self.static_map
+        if grid is None:
+            return
+        origin = (grid.origin_m[0], grid.origin_m[1])
+        self.map_pub.put(ros.occupancy_grid(now, "map", grid.to_ros(), grid.resolution_m, origin))
+
+    def _publish_static(self, now: float) -> None:
+        cfg = self.config
+        identity = (0.0, 0.0, 0.0, 1.0)
+        self.tf_static_pub.put(
+            ros.tf_message(
+                ros.transform_stamped_3d(now, "base_link", "laser", cfg.laser_offset_m, identity),
+                ros.transform_stamped_3d(now, "base_link", "imu", cfg.imu_offset_m, identity),
+            )
+        )
+
+    def _on_info(self, _request: Any) -> Any:
+        slam = self.slam
+        info = {
+            "mode": self.config.mode,
+            "scans": self.scans,
+            "keyframes": 0 if slam is None else slam.num_keyframes,
+            "loop_closures": 0 if slam is None else slam.loop_closures,
+            "optimizations": 0 if slam is None else slam.optimizations,
+        }
+        return msg_class("std_msgs/msg/String")(data=json.dumps(info))
+
+    # ------------------------------------------------------------------------------------------ checkpoint
+
+    def _checkpoint_file(self) -> Any:
+        return None if self.state_dir is None else self.state_dir / "slam.pickle"
+
+    def _checkpoint(self) -> None:
+        """Pickle the mapping state (pose graph, keyframes, map→odom) atomically into the state directory."""
+        path = self._checkpoint_file()
+        if path is None or self.slam is None:
+            return
+        tmp = path.with_suffix(".tmp")
+        with tmp.open("wb") as f:
+            pickle.dump({"slam": self.slam, "map_to_odom": self.map_to_odom, "scans": self.scans}, f)
+        os.replace(tmp, path)
+
+    def _restore(self) -> None:
+        """Resume from this run's checkpoint (written by this service's previous process), if any."""
+        path = self._checkpoint_file()
+        if path is None or not path.exists() or self.config.mode != "mapping":
+            return
+        try:
+            with path.open("rb") as f:
+                state = pickle.load(f)  # our own file in our own run's state directory
+            self.slam, self.map_to_odom, self.scans = state["slam"], state["map_to_odom"], int(state["scans"])
+        except (OSError, pickle.UnpicklingError, KeyError, AttributeError, EOFError) as exc:
+            self.log.warning("SLAM checkpoint %s unreadable (%s): waiting for initialpose", path, exc)
+            return
+        assert self.slam is not None
+        self.log.info("resumed SLAM from checkpoint %s (%d keyframes)", path, self.slam.num_keyframes)
+
+
+def _between(a: Pose2D, b: Pose2D) -> Any:
+    """Relative pose a⁻¹·b of two planar poses, (x, y, θ)."""
+    return compose(invert((a.x, a.y, a.theta)), (b.x, b.y, b.theta))
+
+
+def _positive(cov: Any) -> Any:
+    """A covariance usable by the localizer: RViz sends zeros for what it does not set; floor the diagonal."""
+    c = np.array(cov, dtype=float)
+    floor = np.array([0.01, 0.01, 0.003])
+    c[np.diag_indices(3)] = np.maximum(np.diag(c), floor)
+    return c
