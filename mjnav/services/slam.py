@@ -67,7 +67,7 @@ class SlamServiceConfig:
     resolution_m: float = 0.05
     map_rate_hz: float = 1.0
     loop_closure: bool = True
-    checkpoint_period_s: float = 5.0
+    checkpoint_period_s: float = 2.0
 
     def __post_init__(self) -> None:
         if self.mode == "localization" and not self.map_file:
@@ -118,7 +118,7 @@ class SlamService(Service[SlamServiceConfig]):
         self.pending.clear()
         self.next_map = 0.0
         self.next_static = 0.0
-        self.next_checkpoint = self.config.checkpoint_period_s
+        self.next_checkpoint = 0.0  # the first checkpoint as soon as mapping started
 
     def _on_odom(self, msg: Any) -> None:
         self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
