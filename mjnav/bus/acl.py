@@ -211,9 +211,11 @@ def rights_markdown() -> str:
         names = {OWN: "each identity, its own key", ANYONE: "anyone with a certificate"}
         return ", ".join(names.get(r, r) for r in rights)
 
-    lines = ["| key | may publish |", "|---|---|"]
+    groups: dict[tuple[str, ...], list[str]] = {}
     for name, rights in PUBLISH_RIGHTS.items():
-        lines.append(f"| `<ns>/{TOPICS[name].pattern}` | {who(rights)} |")
+        groups.setdefault(rights, []).append(f"`<ns>/{TOPICS[name].pattern}`")
+    lines = ["| keys | may publish |", "|---|---|"]
+    lines += [f"| {', '.join(keys)} | {who(rights)} |" for rights, keys in groups.items()]
     lines += ["", "| endpoint | may serve | may call |", "|---|---|---|"]
     for name, ep in ENDPOINTS.items():
         lines.append(f"| `<ns>/{ep.pattern}` | {who(SERVE_RIGHTS[name])} | {who(CALL_RIGHTS[name])} |")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -19,13 +20,13 @@ import pytest
 import zenoh
 
 from mjnav.bus import Bus, BusConfig, BusConfigError, NoReply
-from mjnav.bus.acl import access_control, allowed, grants, secure_router_config
+from mjnav.bus.acl import access_control, allowed, grants, rights_markdown, secure_router_config
 from mjnav.bus.certs import make_certificates
 from mjnav.bus.config import tls_files
 from mjnav.msgs import TOPICS, encode, from_dict, msg_class, validate
 from mjnav.msgs.topics import OPERATOR, PUBLISH_RIGHTS, lockstep_key
 from mjnav.runtime.stack import load_stack
-from tests.conftest import free_port
+from tests.conftest import REPO, free_port
 
 SERVICES = load_stack().names()
 INTRUDER = "intruder"
@@ -170,6 +171,13 @@ def test_rules_cover_every_topic_and_endpoint_and_name_real_identities() -> None
     acl = access_control("robot0", SERVICES)
     assert acl["default_permission"] == "deny"
     json.dumps(acl)  # what BusConfig hands to Zenoh
+
+
+def test_readme_rights_table_is_generated_from_the_table() -> None:
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    m = re.search(r"<!-- rights-table:begin -->\n(.*?)\n<!-- rights-table:end -->", readme, re.S)
+    assert m, "README.md lacks the generated rights table markers"
+    assert m.group(1) == rights_markdown(), "README rights table is stale: paste mjnav.bus.acl.rights_markdown()"
 
 
 def test_a_client_without_a_valid_certificate_cannot_connect(certs: Path, secure_router: str, tmp_path: Path) -> None:
