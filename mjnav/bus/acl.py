@@ -188,15 +188,12 @@ def secure_router_config(
         BusConfigError: a certificate is missing, or an endpoint is not ``tls/``.
         AclError: the service names cannot be given rules.
     """
-    files = tls_files(directory, ROUTER)
     return BusConfig(
         mode="router",
         connect=(),
         listen=tuple(listen),
-        tls_ca=files["tls_ca"],
-        tls_cert=files["tls_cert"],
-        tls_key=files["tls_key"],
         access_control=json.dumps(access_control(namespace, services, extra_participants)),
+        **tls_files(directory, ROUTER),
     )
 
 

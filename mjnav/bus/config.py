@@ -32,7 +32,7 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 DEFAULT_PORT = 7447
 DEFAULT_ROUTER = f"tcp/127.0.0.1:{DEFAULT_PORT}"
@@ -176,7 +176,15 @@ def _from_mapping(data: Mapping[str, Any], where: Path) -> dict[str, Any]:
     return changes
 
 
-def tls_files(directory: str | Path, identity: str) -> dict[str, str]:
+class TlsFiles(TypedDict):
+    """The TLS fields of :class:`BusConfig` for one identity (``BusConfig(..., **files)``)."""
+
+    tls_ca: str
+    tls_cert: str
+    tls_key: str
+
+
+def tls_files(directory: str | Path, identity: str) -> TlsFiles:
     """``tls_ca``, ``tls_cert`` and ``tls_key`` of ``identity`` in a folder written by ``mjnav certs``.
 
     Raises:
@@ -190,13 +198,22 @@ def tls_files(directory: str | Path, identity: str) -> dict[str, str]:
             f"no TLS files for {identity!r} in {d} (missing {', '.join(missing)}): "
             f"run 'mjnav certs --out {d}' (add '--client {identity}' for an identity that is not a service)"
         )
-    return {k: str(v.resolve()) for k, v in files.items()}
+    return TlsFiles(
+        tls_ca=str(files["tls_ca"].resolve()),
+        tls_cert=str(files["tls_cert"].resolve()),
+        tls_key=str(files["tls_key"].resolve()),
+    )
 
 
 def tls_env(directory: str | Path, identity: str) -> dict[str, str]:
     """The ``MJNAV_ZENOH_TLS_*`` environment that gives a child process ``identity``'s TLS files
     (:func:`tls_files`)."""
-    return {f"MJNAV_ZENOH_{key.upper()}": path for key, path in tls_files(directory, identity).items()}
+    files = tls_files(directory, identity)
+    return {
+        "MJNAV_ZENOH_TLS_CA": files["tls_ca"],
+        "MJNAV_ZENOH_TLS_CERT": files["tls_cert"],
+        "MJNAV_ZENOH_TLS_KEY": files["tls_key"],
+    }
 
 
 def load_bus_config(
@@ -205,7 +222,7 @@ def load_bus_config(
     mode: str | None = None,
     connect: Sequence[str] | None = None,
     listen: Sequence[str] | None = None,
-    tls: Mapping[str, str] | None = None,
+    tls: TlsFiles | None = None,
     env: Mapping[str, str] | None = None,
 ) -> BusConfig:
     """Resolve the bus configuration from its four layers (later layers win).
@@ -234,7 +251,8 @@ def load_bus_config(
         values["connect"] = tuple(connect)
     if listen:
         values["listen"] = tuple(listen)
-    values.update(tls or {})
+    if tls is not None:
+        values.update(tls)
     if env.get("MJNAV_ZENOH_MODE"):
         values["mode"] = env["MJNAV_ZENOH_MODE"]
     if env.get("MJNAV_ZENOH_CONNECT"):
