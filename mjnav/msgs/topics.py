@@ -311,15 +311,15 @@ ANYONE = "<anyone>"
 #: everything. The router's ACL rules are generated from this table (:mod:`mjnav.bus.acl`), and a test checks that
 #: every publisher a service declares is allowed by it.
 PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
-    "clock": ("sim",),
+    "clock": ("sim", "uav_sim"),
     "scan": ("sim",),
     "odom": ("sim",),
-    "imu": ("sim",),
+    "imu": ("sim", "uav_sim"),
     "joint_states": ("sim",),
     "tf": ("sim",),
-    "ground_truth": ("sim",),
+    "ground_truth": ("sim", "uav_sim"),
     "obstacles": ("sim",),
-    "sim_status": ("sim",),
+    "sim_status": ("sim", "uav_sim"),
     "cmd_vel": ("controller", OPERATOR),
     "map": ("mapper",),
     "costmap": ("mapper",),
@@ -330,6 +330,15 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "goal_status": ("planner", "controller"),
     "status": (OWN,),
     "lockstep": (OWN,),
+    "gps": ("uav_sim",),
+    "baro": ("uav_sim",),
+    "mocap": ("uav_sim",),
+    "ins_odom": ("ins",),
+    "rotor_cmd": ("flight_controller",),
+    "setpoint": (OPERATOR,),
+    "trajectory": (OPERATOR,),
+    "arm": (OPERATOR,),
+    "flight_state": ("flight_controller",),
 }
 
 #: Who may serve (answer) each endpoint when access control is on.
