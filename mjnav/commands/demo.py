@@ -70,6 +70,11 @@ def register(sub: Any) -> None:
     p.add_argument("--port", type=int, default=7447, help="router port on 127.0.0.1 (default 7447)")
     p.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
     p.add_argument(
+        "--secure",
+        metavar="DIR",
+        help="mutual TLS and access control as 'mjnav up --secure DIR'; the mission client joins as 'operator'",
+    )
+    p.add_argument(
         "--set",
         action="append",
         default=[],
@@ -102,7 +107,10 @@ def _parse_goals(args: argparse.Namespace, default: Any) -> list[tuple[float, fl
 
 def run(args: argparse.Namespace) -> int:
     """``mjnav demo``."""
-    from mjnav.bus import Bus, BusConfig
+    from mjnav.bus import Bus, BusConfig, BusConfigError
+    from mjnav.bus.acl import AclError
+    from mjnav.bus.config import tls_files
+    from mjnav.msgs.topics import OPERATOR
     from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
@@ -148,9 +156,15 @@ def run(args: argparse.Namespace) -> int:
             lockstep=not args.free_running,
             extra_participants=[MISSION],
             seed=args.seed,
+            secure=args.secure,
         )
         launcher.check()
-    except (ConfigError, ValueError) as exc:
+        bus_config = BusConfig(mode="client", connect=(launcher.endpoint,))
+        if args.secure:
+            bus_config = BusConfig(
+                mode="client", connect=(launcher.endpoint,), listen=(), **tls_files(args.secure, OPERATOR)
+            )
+    except (ConfigError, BusConfigError, AclError, ValueError) as exc:
         print(f"mjnav demo: {exc}", file=sys.stderr)
         return 2
     codes: list[int] = []
@@ -158,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
     thread.start()
     summary = None
     try:
-        with Bus.open(BusConfig(mode="client", connect=(launcher.endpoint,)), stack.namespace) as bus:
+        with Bus.open(bus_config, stack.namespace) as bus:
             summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
             summary.seed = args.seed
             summary.lockstep = not args.free_running

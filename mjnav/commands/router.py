@@ -10,6 +10,7 @@ from types import FrameType
 from typing import Any
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+DEFAULT_TLS_LISTEN = "tls/127.0.0.1:7447"
 
 
 def register(sub: Any) -> None:
@@ -22,7 +23,8 @@ def register(sub: Any) -> None:
             "Connect it to other routers (--connect tcp/HOST:7447) to join machines. The environment "
             "(MJNAV_ZENOH_LISTEN, MJNAV_ZENOH_CONNECT) wins over the flags, as for every mjnav process."
         ),
-        epilog="Example: mjnav router --listen tcp/0.0.0.0:7447 --connect tcp/192.168.1.20:7447",
+        epilog="Examples: mjnav router --listen tcp/0.0.0.0:7447 --connect tcp/192.168.1.20:7447   "
+        "mjnav router --secure certs --listen tls/0.0.0.0:7447",
     )
     p.add_argument(
         "--listen",
@@ -38,6 +40,14 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--bus-config", metavar="FILE", help="TOML file with connect/listen (env MJNAV_ZENOH_CONFIG)")
     p.add_argument("--multicast", action="store_true", help="also discover peers by UDP multicast scouting")
+    p.add_argument(
+        "--secure",
+        metavar="DIR",
+        help="mutual TLS and the stack's access control with the certificates in DIR ('mjnav certs'), as "
+        "'mjnav up --secure' does; listen endpoints must then be tls/… (default tls/127.0.0.1:7447)",
+    )
+    p.add_argument("--stack", metavar="FILE", help="with --secure: the stack whose rights apply (default services/)")
+    p.add_argument("--ns", metavar="NAMESPACE", help="with --secure: the stack's namespace (default: the stack's)")
     p.set_defaults(func=run)
 
 
@@ -47,7 +57,10 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from mjnav.bus import Bus, BusConfigError, load_bus_config
+    from mjnav.bus.acl import AclError, secure_router_config
+    from mjnav.runtime.config import ConfigError
     from mjnav.runtime.logs import setup_logging
+    from mjnav.runtime.stack import load_stack
 
     setup_logging("INFO")
     try:
@@ -55,12 +68,16 @@ def run(args: argparse.Namespace) -> int:
             config_file=args.bus_config,
             mode="router",
             connect=args.connect,
-            listen=args.listen or [DEFAULT_LISTEN],
+            listen=args.listen or [DEFAULT_TLS_LISTEN if args.secure else DEFAULT_LISTEN],
         )
         if not args.connect and not os.environ.get("MJNAV_ZENOH_CONNECT") and not _file_sets_connect(args):
             config = replace(config, connect=())  # a router connects to nobody unless told (not to itself)
+        if args.secure:
+            stack = load_stack(args.stack)
+            secure = secure_router_config(args.secure, config.listen, args.ns or stack.namespace, stack.names())
+            config = replace(secure, connect=config.connect)
         config = replace(config, mode="router", multicast_scouting=config.multicast_scouting or args.multicast)
-    except BusConfigError as exc:
+    except (BusConfigError, AclError, ConfigError, ValueError) as exc:
         print(f"mjnav router: {exc}", file=sys.stderr)
         return 2
     stop = threading.Event()

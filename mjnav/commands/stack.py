@@ -34,7 +34,7 @@ def register(sub: Any) -> None:
         help="override a config value (TOML syntax: --set rate_hz=20 --set world=maze); repeatable",
     )
     run.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
-    add_bus_arguments(run)
+    add_bus_arguments(run, identity=None)
     run.set_defaults(func=run_service)
 
     up = sub.add_parser(
@@ -89,6 +89,14 @@ def register(sub: Any) -> None:
         help=f"kill and restart a running service whose status heartbeat stopped for S wall seconds "
         f"(default {HUNG_TIMEOUT_S:g})",
     )
+    up.add_argument(
+        "--secure",
+        metavar="DIR",
+        help="mutual TLS and access control with the certificates in DIR (make them with 'mjnav certs --out DIR'): "
+        "the router listens on tls/127.0.0.1:PORT, accepts only clients with a certificate of DIR's CA and lets "
+        "each identity publish only its own topics (README 'Security'); default: plain TCP on loopback, no access "
+        "control",
+    )
     up.add_argument("--list", action="store_true", help="list the stack's services and exit")
     up.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
     up.set_defaults(func=run_up)
@@ -109,7 +117,11 @@ def run_service(args: argparse.Namespace) -> int:
         overrides = dict(parse_override(item) for item in args.set)
         config = spec.load_config(overrides)
         runner = ServiceRunner(
-            spec.load_class(), config, bus_config_from_args(args), args.ns or stack.namespace, name=spec.name
+            spec.load_class(),
+            config,
+            bus_config_from_args(args, identity=spec.name),
+            args.ns or stack.namespace,
+            name=spec.name,
         )
     except (ConfigError, BusConfigError, ValueError) as exc:
         print(f"mjnav run: {exc}", file=sys.stderr)
@@ -120,6 +132,8 @@ def run_service(args: argparse.Namespace) -> int:
 
 def run_up(args: argparse.Namespace) -> int:
     """``mjnav up``."""
+    from mjnav.bus import BusConfigError
+    from mjnav.bus.acl import AclError
     from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
@@ -152,9 +166,10 @@ def run_up(args: argparse.Namespace) -> int:
             lockstep=not args.free_running,
             seed=args.seed,
             hung_timeout_s=args.hung_timeout,
+            secure=args.secure,
         )
         launcher.check()
-    except (ConfigError, ValueError) as exc:
+    except (ConfigError, BusConfigError, AclError, ValueError) as exc:
         print(f"mjnav up: {exc}", file=sys.stderr)
         return 2
     return launcher.run()

@@ -354,6 +354,53 @@ ENDPOINTS: dict[str, Endpoint] = {
     )
 }
 
+#: Access-control role of a user's tools (goals, cancel, teleop, ``mjnav demo``'s mission client): the common name
+#: of the operator certificate ``mjnav certs`` writes. The services' identities are their names.
+OPERATOR = "operator"
+#: In the rights tables: each identity, on its own key of a per-service topic or endpoint (``status/<identity>``).
+OWN = "<own>"
+#: In the rights tables: every identity that holds a certificate of the stack's CA.
+ANYONE = "<anyone>"
+
+#: Who may publish each topic when access control is on (``mjnav up --secure``); everyone may subscribe to
+#: everything. The router's ACL rules are generated from this table (:mod:`mjnav.bus.acl`), and a test checks that
+#: every publisher a service declares is allowed by it.
+PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
+    "clock": ("sim", "uav_sim"),
+    "scan": ("sim",),
+    "odom": ("sim",),
+    "imu": ("sim", "uav_sim"),
+    "joint_states": ("sim",),
+    "tf": ("sim",),
+    "ground_truth": ("sim", "uav_sim"),
+    "obstacles": ("sim",),
+    "sim_status": ("sim", "uav_sim"),
+    "cmd_vel": ("controller", OPERATOR),
+    "map": ("mapper",),
+    "costmap": ("mapper",),
+    "goal": (OPERATOR,),
+    "cancel": (OPERATOR,),
+    "plan": ("planner",),
+    "path": ("smoother",),
+    "goal_status": ("planner", "controller"),
+    "status": (OWN,),
+    "lockstep": (OWN,),
+    "gps": ("uav_sim",),
+    "baro": ("uav_sim",),
+    "mocap": ("uav_sim",),
+    "ins_odom": ("ins",),
+    "rotor_cmd": ("flight_controller",),
+    "setpoint": (OPERATOR,),
+    "trajectory": (OPERATOR,),
+    "arm": (OPERATOR,),
+    "flight_state": ("flight_controller",),
+}
+
+#: Who may serve (answer) each endpoint when access control is on.
+SERVE_RIGHTS: dict[str, tuple[str, ...]] = {"config": (OWN,), "save_map": ("mapper",)}
+#: Who may call each endpoint when access control is on (only an operator makes the mapper write files).
+CALL_RIGHTS: dict[str, tuple[str, ...]] = {"config": (ANYONE,), "save_map": (OPERATOR,)}
+
 #: Liveliness key of a running service (a Zenoh liveliness token, not a topic).
 ALIVE_PREFIX = "mjnav/alive"
 

@@ -1,6 +1,7 @@
 """``mjnav up``: an in-process Zenoh router plus every stack service as a supervised child process.
 
-The router listens on ``tcp/127.0.0.1:<port>``; each service runs as ``python -m mjnav run <name>`` connected to
+The router listens on ``tcp/127.0.0.1:<port>`` (``tls/…`` with mutual TLS and access control when ``secure``
+names a ``mjnav certs`` folder); each service runs as ``python -m mjnav run <name>`` connected to
 it, with its output prefixed ``[name]``. A service that exits on its own is restarted (bounded by its
 ``restarts`` in the stack file, with exponential back-off); so is a hung one — a running process whose status
 heartbeat (``<ns>/status/<name>``, every wall second) stopped for ``hung_timeout_s``, or whose liveliness token
@@ -25,10 +26,13 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
+from pathlib import Path
 from types import FrameType
 from typing import IO, Any
 
 from mjnav.bus import Bus, BusConfig, BusUnavailable
+from mjnav.bus.acl import secure_router_config
+from mjnav.bus.config import tls_env
 from mjnav.runtime.config import ConfigError, parse_override
 from mjnav.runtime.service import STATE_DIR_ENV
 from mjnav.runtime.stack import ServiceSpec, Stack
@@ -92,6 +96,9 @@ class Launcher:
         seed: seed every service that has a ``seed`` setting (the sim's noise, the planner's randomness).
         hung_timeout_s: wall seconds without a status heartbeat from a running service (once it sent one) after
             which it is killed and restarted.
+        secure: folder of ``mjnav certs`` certificates: the router listens on ``tls/127.0.0.1:<port>`` with mutual
+            TLS and the stack's access control (:mod:`mjnav.bus.acl`); each service connects with its own
+            certificate. None: plain TCP on loopback, no access control.
     """
 
     def __init__(
@@ -109,6 +116,7 @@ class Launcher:
         extra_participants: Sequence[str] = (),
         seed: int | None = None,
         hung_timeout_s: float = HUNG_TIMEOUT_S,
+        secure: str | Path | None = None,
     ) -> None:
         if not hung_timeout_s > 0:
             raise ValueError(f"hung_timeout_s must be > 0, got {hung_timeout_s}")
@@ -129,6 +137,15 @@ class Launcher:
         self._alive: set[str] = set()
         self._lock = threading.Lock()  # child heartbeat fields, written from Zenoh callbacks
         self.state_dir: str | None = None  # this run's checkpoints (see Service.state_dir), while running
+        self.secure = Path(secure) if secure is not None else None
+        if self.secure is not None:
+            for spec in self.specs:
+                tls_env(self.secure, spec.name)  # every certificate is there before anything starts
+        self._router_config = (
+            secure_router_config(self.secure, [self.endpoint], self.namespace, stack.names(), extra_participants)
+            if self.secure is not None
+            else BusConfig(mode="router", connect=(), listen=(self.endpoint,))
+        )
 
     def _add_run_settings(self, lockstep: bool, extra_participants: Sequence[str], seed: int | None) -> None:
         """Lockstep and seed settings, put before the caller's overrides so that an explicit ``--set`` wins."""
@@ -173,7 +190,7 @@ class Launcher:
     @property
     def endpoint(self) -> str:
         """The router endpoint services connect to."""
-        return f"tcp/127.0.0.1:{self.port}"
+        return f"{'tls' if self.secure is not None else 'tcp'}/127.0.0.1:{self.port}"
 
     # ------------------------------------------------------------------------------------------- child process
 
@@ -215,7 +232,7 @@ class Launcher:
             stdin=subprocess.DEVNULL,
             text=True,
             bufsize=1,
-            env=self._env(),
+            env={**self._env(), **(tls_env(self.secure, child.spec.name) if self.secure is not None else {})},
             start_new_session=True,  # Ctrl-C reaches the launcher only; it stops the services in order
             preexec_fn=_die_with_parent(os.getpid()),
         )
@@ -354,7 +371,7 @@ class Launcher:
             signal.signal(signal.SIGINT, self._on_signal)
             signal.signal(signal.SIGTERM, self._on_signal)
         try:
-            router = Bus.open(BusConfig(mode="router", connect=(), listen=(self.endpoint,)), self.namespace)
+            router = Bus.open(self._router_config, self.namespace)
         except BusUnavailable as exc:
             log.error("cannot start the router: %s (port %d in use? use --port)", exc, self.port)
             return 2

@@ -41,3 +41,23 @@ def test_bad_values_are_typed_errors(tmp_path: Path) -> None:
         load_bus_config(config_file=bad, env={})
     with pytest.raises(BusConfigError, match="cannot read"):
         load_bus_config(config_file=tmp_path / "missing.toml", env={})
+
+
+def test_tls_layers_and_defaults_leave_no_plain_tcp_endpoint(tmp_path: Path) -> None:
+    f = tmp_path / "bus.toml"
+    f.write_text('mode = "client"\ntls_ca = "certs/ca.crt"\ntls_cert = "certs/me.crt"\ntls_key = "certs/me.key"\n')
+    cfg = load_bus_config(config_file=f, env={})
+    assert cfg.tls and cfg.tls_ca == str(tmp_path / "certs" / "ca.crt")  # relative to the file
+    assert cfg.connect == ("tls/127.0.0.1:7447",) and cfg.listen == ()
+    env = {"MJNAV_ZENOH_TLS_CA": "/x/ca.crt", "MJNAV_ZENOH_TLS_CERT": "/x/a.crt", "MJNAV_ZENOH_TLS_KEY": "/x/a.key"}
+    cfg = load_bus_config(connect=["tls/10.0.0.2:7447"], env=env)
+    assert (cfg.tls_ca, cfg.tls_cert, cfg.tls_key) == ("/x/ca.crt", "/x/a.crt", "/x/a.key")
+    assert cfg.connect == ("tls/10.0.0.2:7447",) and cfg.mode == "peer" and cfg.listen == ()
+    tls = cfg.to_zenoh()
+    assert '"/x/a.crt"' in tls.get_json("transport/link/tls/connect_certificate")
+    assert tls.get_json("transport/link/tls/enable_mtls") == "true"
+    with pytest.raises(BusConfigError, match="not tls"):
+        load_bus_config(connect=["tcp/127.0.0.1:7447"], env=env)
+    with pytest.raises(BusConfigError, match="tls_ca"):
+        BusConfig(connect=(), listen=(), tls_cert="/x/a.crt", tls_key="/x/a.key")
+    assert load_bus_config(env={}).tls is False
