@@ -371,12 +371,16 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "odom": ("sim",),
     "imu": ("sim", "uav_sim"),
     "joint_states": ("sim",),
-    "tf": ("sim",),
+    "tf": ("sim", "slam"),
     "ground_truth": ("sim", "uav_sim"),
+    "truth": ("sim",),
+    "pose": ("slam",),
+    "initialpose": (OPERATOR,),
+    "tf_static": ("slam",),
     "obstacles": ("sim",),
     "sim_status": ("sim", "uav_sim"),
     "cmd_vel": ("controller", OPERATOR),
-    "map": ("mapper",),
+    "map": ("slam", "mapper"),
     "costmap": ("mapper",),
     "goal": (OPERATOR,),
     "cancel": (OPERATOR,),
@@ -397,9 +401,9 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
 }
 
 #: Who may serve (answer) each endpoint when access control is on.
-SERVE_RIGHTS: dict[str, tuple[str, ...]] = {"config": (OWN,), "save_map": ("mapper",)}
+SERVE_RIGHTS: dict[str, tuple[str, ...]] = {"config": (OWN,), "save_map": ("mapper",), "slam_info": ("slam",)}
 #: Who may call each endpoint when access control is on (only an operator makes the mapper write files).
-CALL_RIGHTS: dict[str, tuple[str, ...]] = {"config": (ANYONE,), "save_map": (OPERATOR,)}
+CALL_RIGHTS: dict[str, tuple[str, ...]] = {"config": (ANYONE,), "save_map": (OPERATOR,), "slam_info": (ANYONE,)}
 
 #: Liveliness key of a running service (a Zenoh liveliness token, not a topic).
 ALIVE_PREFIX = "mjnav/alive"

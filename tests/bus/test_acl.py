@@ -161,7 +161,7 @@ def test_rules_cover_every_topic_and_endpoint_and_name_real_identities() -> None
         "cmd_vel": {"controller", OPERATOR},
         "goal_status": {"planner", "controller"},
         "costmap": {"mapper"},
-        "map": {"mapper"},
+        "map": {"slam", "mapper"},  # SLAM's map; the mapper's own with map_source = scan
         "goal": {OPERATOR},
         "cancel": {OPERATOR},
     }

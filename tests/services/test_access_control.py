@@ -21,6 +21,7 @@ from mjnav.bus.config import tls_files
 from mjnav.msgs import from_dict, msg_class, ros
 from mjnav.msgs.topics import OPERATOR
 from mjnav.runtime.mission import MissionClient
+from mjnav.sim.worlds import world_info
 from mjnav.runtime.stack import load_stack, services_dir
 from tests.services.test_navigation import RTF, SERVICES, up_process
 
@@ -95,7 +96,7 @@ def test_the_stack_runs_under_secure_and_an_outsider_cannot_end_the_goal_or_move
             BusConfig(mode="client", connect=(endpoint,), listen=(), **tls_files(certs, "intruder"))
         )
         try:
-            client = MissionClient(operator, name=OPERATOR)
+            client = MissionClient(operator, name=OPERATOR, initial_pose=world_info("rooms").start)
             assert wait_until(lambda: set(SERVICES) <= set(operator.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
             assert client.truth.wait(60.0) is not None
             mapper_status = operator.subscribe("status", service="mapper")
