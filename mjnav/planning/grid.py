@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mjnav.planning import _kernels as kern
+from mjnav.planning import _weighted as weighted
 from mjnav.planning._workspace import get_workspace
 from mjnav.planning.errors import (
     GoalOccupied,
@@ -121,17 +122,26 @@ def as_cost(cost: ArrayLike | None, shape: tuple[int, int]) -> NDArray[np.float6
     """Validate an optional (H, W) traversal-cost grid (finite ≥ 0 or +inf); raises InvalidInput."""
     if cost is None:
         return None
+    arr = _cost_array(cost, shape)
+    if np.isnan(arr).any():
+        raise InvalidInput(_COST_NAN)
+    if (arr < 0).any():
+        raise InvalidInput(_COST_NEGATIVE)
+    return arr
+
+
+_COST_NAN = "cost contains NaN"
+_COST_NEGATIVE = "cost must be >= 0 (use +inf for impassable cells)"
+
+
+def _cost_array(cost: ArrayLike, shape: tuple[int, int]) -> NDArray[np.float64]:
+    """``cost`` as float64 after the shape and dtype checks of :func:`as_cost` (values not checked)."""
     arr = np.asarray(cost)
     if arr.shape != shape:
         raise InvalidInput(f"cost must have the map shape {shape}; got {arr.shape}")
     if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
         raise InvalidInput(f"cost must be a real array; got dtype {arr.dtype}")
-    arr = arr.astype(np.float64, copy=False)
-    if np.isnan(arr).any():
-        raise InvalidInput("cost contains NaN")
-    if (arr < 0).any():
-        raise InvalidInput("cost must be >= 0 (use +inf for impassable cells)")
-    return arr
+    return arr.astype(np.float64, copy=False)
 
 
 def check_endpoints(blocked: NDArray[np.bool_], start: tuple[int, int], goal: tuple[int, int]) -> None:
@@ -241,6 +251,13 @@ def plan_grid(
         raise InvalidInput(f"connectivity must be 4 or 8; got {connectivity!r}")
     hcode = heuristic_code(heuristic)
     alpha, beta = _as_weights(weights)
+    if cost is not None and algorithm in ("astar", "dijkstra", "greedy"):
+        if algorithm == "dijkstra":
+            alpha, beta = 1.0, 0.0
+        elif algorithm == "greedy":
+            alpha, beta = 0.0, 1.0
+        cost_grid = _cost_array(cost, shape)
+        return _plan_weighted(grid, cost_grid, s, t, str(algorithm), connectivity, corner_cutting, alpha, beta, hcode)
     cost_arr = as_cost(cost, shape)
     blocked_mask = grid if cost_arr is None else (grid | np.isinf(cost_arr))
     check_endpoints(blocked_mask, s, t)
@@ -300,11 +317,9 @@ def plan_grid(
         alpha, beta = 1.0, 0.0
     elif algorithm == "greedy":
         alpha, beta = 0.0, 1.0
-    has_cost = cost_arr is not None
-    cost_flat = np.zeros(1) if cost_arr is None else _pad_cost(cost_arr).ravel()
     while True:
         g_goal, expanded, status = kern.best_first(
-            flat, width, sn, tn, n_moves, corner_cutting, alpha, beta, hcode, cost_flat, has_cost,
+            flat, width, sn, tn, n_moves, corner_cutting, alpha, beta, hcode,
             ws.nodes, ws.begin(), ws.keys, ws.subs, ws.items,
         )  # fmt: skip
         if status != kern.OVERFLOW:
@@ -344,10 +359,68 @@ def _plan_jps(
     return GridPlan(trace_jump_path(ws.nodes, stride, sn, tn), float(g_goal), int(expanded), "jps")
 
 
-def _pad_cost(cost: NDArray[np.float64]) -> NDArray[np.float64]:
-    out = np.zeros((cost.shape[0] + 2, cost.shape[1] + 2))
-    out[1:-1, 1:-1] = np.where(np.isinf(cost), 0.0, cost)
-    return out
+def _plan_weighted(
+    grid: NDArray[np.bool_],
+    cost: NDArray[np.float64],
+    s: tuple[int, int],
+    t: tuple[int, int],
+    algorithm: str,
+    connectivity: int,
+    corner_cutting: bool,
+    alpha: float,
+    beta: float,
+    hcode: int,
+) -> GridPlan:
+    """A*, Dijkstra or greedy with a cost grid (:mod:`mjnav.planning._weighted`); checks the cost values and cells.
+
+    Args:
+        grid: (H, W) bool occupancy.
+        cost: (H, W) float64 extra cost per unit length (shape and dtype already checked).
+        s: start (row, col).
+        t: goal (row, col).
+        algorithm: the name reported in the plan.
+        connectivity: 4 or 8.
+        corner_cutting: allow diagonal steps past occupied orthogonal cells.
+        alpha: weight of g.
+        beta: weight of h.
+        hcode: heuristic code.
+    """
+    h, w = int(grid.shape[0]), int(grid.shape[1])
+    width = w + 2
+    n_nodes = (h + 2) * width
+    if n_nodes >= 2**31:
+        raise InvalidInput(f"map of {h}×{w} cells is too large (node ids are int32)")
+    ws = get_workspace(n_nodes)
+    rec, parent = ws.cost_grids(n_nodes)
+    verdict, lowest = weighted.prepare_costs(grid, cost, rec)
+    if verdict == weighted.COSTS_NAN:
+        raise InvalidInput(_COST_NAN)
+    if verdict == weighted.COSTS_NEGATIVE:
+        raise InvalidInput(_COST_NEGATIVE)
+    if not (0 <= s[0] < h and 0 <= s[1] < w):
+        raise StartOutsideMap(s, (h, w))
+    if not (0 <= t[0] < h and 0 <= t[1] < w):
+        raise GoalOutsideMap(t, (h, w))
+    sn = (s[0] + 1) * width + s[1] + 1
+    tn = (t[0] + 1) * width + t[1] + 1
+    if rec[2 * sn] == -np.inf:  # occupied or of infinite cost
+        raise StartOccupied(s)
+    if rec[2 * tn] == -np.inf:
+        raise GoalOccupied(t)
+    if s == t:
+        return GridPlan(np.array([s], dtype=np.int64), 0.0, 0, algorithm)
+    while True:
+        g_goal, expanded, status = weighted.weighted_search(
+            rec, width, sn, tn, connectivity, corner_cutting, alpha, beta, hcode, 1.0 + lowest,
+            parent, ws.keys, ws.items,
+        )  # fmt: skip
+        if status != kern.OVERFLOW:
+            break
+        ws.grow_heap()
+        weighted.prepare_costs(grid, cost, rec)
+    if status != kern.FOUND:
+        raise NoPathFound(f"no path from {s} to {t} ({algorithm} expanded {expanded} nodes)")
+    return GridPlan(weighted.trace_parents(parent, width, sn, tn), float(g_goal), int(expanded), algorithm)
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -1,0 +1,233 @@
+"""Best-first search (A*, Dijkstra, greedy) on a grid with a traversal-cost grid (compiled kernels, internal).
+
+This is the search :func:`~mjnav.planning.plan_grid` runs when it is given a ``cost`` grid: the planner service's
+default on inflated costmaps. Step model as in :mod:`mjnav.planning.grid`: a step a → b of length d (1 or √2)
+costs d·(1 + (cost[a] + cost[b]) / 2), the trapezoid rule over the per-cell factor 1 + cost (scikit-image's
+``MCP_Geometric`` with costs 1 + cost gives the same optimal costs).
+
+Memory: one float64 pair per padded node, ``rec[2·i] = g`` (cost so far) and ``rec[2·i + 1] = w`` (half the
+step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])), plus an int32 ``parent`` per node, both from the
+thread's :class:`~mjnav.planning._workspace.Workspace`. :func:`prepare_costs` writes every pair once per query
+(validating the cost grid in the same pass), so the search needs no visit tags:
+
+* unseen free node: g = +inf; open: g ≥ 0; closed: g stored negated (so −0.0 for the start, which is never
+  re-opened: every step costs ≥ 1); blocked (map, +inf cost or the one-cell border): g = −inf, w = +inf.
+* Relaxing a neighbour is therefore one load of its pair and one comparison: ``d·(w0 + w) < g`` is false for
+  closed and blocked nodes alike, so closed nodes are never re-opened (as in the textbook A* with a consistent
+  heuristic; with an inconsistent one — weighted A*, greedy — paths stay consistent with their reported cost).
+
+Heuristic: the chosen metric (cells) times ``hscale`` = 1 + min(cost) over the free cells. Every step of length
+d costs at least d·hscale, so the scaled metric stays admissible and consistent whenever the metric is
+(octile, Euclidean or Chebyshev on 8-connected grids; any of them on 4-connected ones). On maps whose free
+cells are all near obstacles (random512-40-5 with the benchmark's cost field: hscale ≈ 4.9) this cuts the
+expansions ~3×; elsewhere it is ≈ 1.
+
+Open list: the 4-ary heap ordered by f alone (:func:`~mjnav.planning._kernels.heap4_push`), with lazy deletion
+(stale entries are skipped when popped, the node being closed). Successors whose f equals the popped f (within a
+few ulps) go on a small LIFO stack served before the heap, as in :func:`~mjnav.planning._kernels.best_first`:
+this is the tie-break towards larger g that keeps A* from expanding whole plateaus of equal f on zero-cost
+regions, and it keeps optimality (f never decreases along a path with a consistent heuristic).
+
+Measured (kernel only, 10 longest queries, maze512-32-9 with the benchmark's cost field, same process, best of
+5): the former generic kernel (16-byte visit-tagged records + a separate padded cost array, binary heap ordered
+by (f, h)) took ~200 ns per expansion; the 4-ary heap brought that to ~95 ns, the (g, w) pairs without tags to
+~85-90 ns. Tried and dropped: fully unrolled neighbour relaxation through an inlined helper (2-3× slower as
+compiled by numba); replacing the integer division that recovers (row, col) by a float multiply (no change);
+a two-level bucket queue (bucket width 0.1-1 cost units, a small heap for the current bucket): not clearly
+faster than the 4-ary heap in a synthetic trace with the search's push/pop pattern.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from mjnav.planning._kernels import FOUND, MOVE_DC, MOVE_DR, NOT_FOUND, OVERFLOW, heap4_push, heap4_sift_down
+from mjnav.planning.heuristics import heuristic_value
+
+SQRT2 = math.sqrt(2.0)
+
+#: :func:`prepare_costs` verdicts on the cost grid.
+COSTS_OK = 0
+COSTS_NAN = 1
+COSTS_NEGATIVE = 2
+
+
+@njit(cache=True)
+def prepare_costs(
+    occupied: NDArray[np.bool_], cost: NDArray[np.float64], rec: NDArray[np.float64]
+) -> tuple[int, float]:  # pragma: no cover - compiled
+    """Write the (g, w) pair of every padded node for a new search and validate ``cost`` in the same pass.
+
+    Args:
+        occupied: (H, W) bool, True = blocked.
+        cost: (H, W) float64 extra cost per unit length, ≥ 0 or +inf (impassable).
+        rec: float64 storage of at least 2·(H + 2)·(W + 2) values; see the module docstring.
+
+    Returns:
+        (verdict: :data:`COSTS_OK`, :data:`COSTS_NAN` or :data:`COSTS_NEGATIVE` (NaN wins), the smallest cost
+        of a free cell, +inf when there is none).
+    """
+    h, w = occupied.shape
+    width = w + 2
+    inf = np.inf
+    for c in range(width):
+        rec[2 * c] = -inf
+        rec[2 * c + 1] = inf
+        j = 2 * ((h + 1) * width + c)
+        rec[j] = -inf
+        rec[j + 1] = inf
+    lo = inf
+    nan = False
+    negative = False
+    for r in range(h):
+        row = 2 * (r + 1) * width
+        rec[row] = -inf
+        rec[row + 1] = inf
+        rec[row + 2 * width - 2] = -inf
+        rec[row + 2 * width - 1] = inf
+        for c in range(w):
+            e = cost[r, c]
+            nan |= e != e
+            negative |= e < 0.0
+            blocked = occupied[r, c] | (e == inf)
+            j = row + 2 * c + 2
+            rec[j] = -inf if blocked else inf
+            rec[j + 1] = inf if blocked else 0.5 + 0.5 * e
+            lo = lo if blocked else min(lo, e)
+    if nan:
+        return COSTS_NAN, lo
+    return (COSTS_NEGATIVE if negative else COSTS_OK), lo
+
+
+@njit(cache=True)
+def weighted_search(
+    rec: NDArray[np.float64],
+    width: int,
+    start: int,
+    goal: int,
+    n_moves: int,
+    corner_cutting: bool,
+    alpha: float,
+    beta: float,
+    hcode: int,
+    hscale: float,
+    parent: NDArray[np.int32],
+    keys: NDArray[np.float64],
+    items: NDArray[np.int64],
+) -> tuple[float, int, int]:  # pragma: no cover - compiled
+    """Best-first search with priority α·g + β·hscale·h over the pairs written by :func:`prepare_costs`.
+
+    Args:
+        rec: (g, w) pairs of the padded nodes (node of map cell (r, c) = (r + 1)·width + c + 1).
+        width: padded width W + 2.
+        start: start node (free).
+        goal: goal node (free, ≠ start).
+        n_moves: 4 or 8.
+        corner_cutting: allow diagonal steps past blocked orthogonal cells.
+        alpha: weight of g.
+        beta: weight of h.
+        hcode: heuristic code (:data:`mjnav.planning.heuristics.HEURISTIC_CODES`).
+        hscale: factor on the heuristic, 1 + the smallest free-cell cost.
+        parent: int32 per node, written for every node reached.
+        keys: heap storage (priorities).
+        items: heap storage (nodes).
+
+    Returns:
+        (g of the goal, number of expanded nodes, status: FOUND, NOT_FOUND or OVERFLOW when the heap is full).
+    """
+    inf = np.inf
+    one = np.uint64(1)
+    offs = np.empty(8, np.int64)
+    lens = np.empty(8, np.float64)
+    for k in range(8):
+        offs[k] = MOVE_DR[k] * width + MOVE_DC[k]
+        lens[k] = SQRT2 if k >= 4 else 1.0
+    gr = goal // width
+    gc = goal - gr * width
+    rec[2 * start] = 0.0
+    parent[start] = -1
+    size = heap4_push(keys, items, 0, 0.0, start)
+    expanded = 0
+    bypass = alpha == beta
+    fast = np.empty(64, np.int64)
+    nfast = 0
+    fkey = 0.0
+    up = np.uint64(2 * width)
+    fn = fs = fw = fe = True
+    while size > 0 or nfast > 0:
+        if nfast > 0:
+            nfast -= 1
+            cur = fast[nfast]
+        else:
+            fkey = keys[0]
+            cur = items[0]
+            size -= 1
+            heap4_sift_down(keys, items, size)
+        cu = np.uint64(2 * cur)
+        g0 = rec[cu]
+        if g0 < 0.0:
+            continue  # closed: a stale entry
+        rec[cu] = -g0
+        expanded += 1
+        if cur == goal:
+            return g0, expanded, FOUND
+        w0 = rec[cu + one]
+        cr = cur // width
+        cc = cur - cr * width
+        if not corner_cutting:
+            # Free orthogonal neighbours N, S, W, E (w finite): the diagonals need two of them.
+            fn = rec[cu - up + one] != inf
+            fs = rec[cu + up + one] != inf
+            fw = rec[cu - one] != inf
+            fe = rec[cu + np.uint64(3)] != inf
+        for k in range(n_moves):
+            if k >= 4 and not corner_cutting:
+                if k == 4:
+                    ok = fn and fw
+                elif k == 5:
+                    ok = fn and fe
+                elif k == 6:
+                    ok = fs and fw
+                else:
+                    ok = fs and fe
+                if not ok:
+                    continue
+            nb = cur + offs[k]
+            j = np.uint64(2 * nb)
+            ng = g0 + lens[k] * (w0 + rec[j + one])
+            if ng < rec[j]:  # false for closed (g < 0) and blocked (g = −inf, w = +inf) nodes
+                if size == keys.shape[0]:
+                    return inf, expanded, OVERFLOW
+                rec[j] = ng
+                parent[nb] = cur
+                h = heuristic_value(hcode, float(abs(cr + MOVE_DR[k] - gr)), float(abs(cc + MOVE_DC[k] - gc)))
+                key = alpha * ng + beta * (hscale * h)
+                if bypass and key <= fkey + 1e-14 * (1.0 + fkey) and nfast < 64:
+                    fast[nfast] = nb
+                    nfast += 1
+                else:
+                    size = heap4_push(keys, items, size, key, nb)
+    return inf, expanded, NOT_FOUND
+
+
+@njit(cache=True)
+def trace_parents(parent: NDArray[np.int32], width: int, start: int, goal: int) -> NDArray[np.int64]:
+    """(N, 2) (row, col) cells of the unpadded map from ``start`` to ``goal`` along ``parent``."""
+    count = 1
+    node = goal
+    while node != start:
+        node = parent[node]
+        count += 1
+    out = np.empty((count, 2), np.int64)
+    node = goal
+    for i in range(count - 1, -1, -1):
+        r = node // width
+        out[i, 0] = r - 1
+        out[i, 1] = node - r * width - 1
+        if i > 0:
+            node = parent[node]
+    return out

@@ -1,0 +1,137 @@
+"""plan_grid with a cost grid (the compiled search of mjnav.planning._weighted): exact optimal costs against
+scikit-image's MCP_Geometric on Moving AI maps and against an independent Dijkstra on random maps, valid paths,
+the scaled heuristic, ties on zero-cost plateaus, non-optimal modes and typed errors."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.ndimage import distance_transform_edt
+
+from mjnav.mapping.movingai import read_movingai_map, read_movingai_scen
+from mjnav.planning import GoalOccupied, InvalidInput, NoPathFound, StartOccupied, check_path, path_cost, plan_grid
+from tests.planning import oracle
+
+SQRT2 = math.sqrt(2.0)
+
+
+def clearance_cost(blocked: np.ndarray) -> np.ndarray:
+    """The benchmark's cost field minus one: 8·exp(−d/4), d = distance to the nearest blocked cell (cells)."""
+    d = distance_transform_edt(~blocked)
+    return np.where(blocked, 0.0, 8.0 * np.exp(-d / 4.0))
+
+
+@pytest.mark.parametrize(("name", "queries"), [("den312d", 6), ("Boston_0_256", 3), ("random512-40-5", 4)])
+def test_costs_equal_mcp_geometric_on_movingai_maps(refdata: Path, name: str, queries: int) -> None:
+    graph = pytest.importorskip("skimage.graph")
+    blocked = np.asarray(read_movingai_map(refdata / "movingai" / f"{name}.map").blocked)
+    scen = read_movingai_scen(refdata / "movingai" / f"{name}.map.scen")
+    extra = clearance_cost(blocked)
+    mcp = graph.MCP_Geometric(np.where(blocked, np.inf, 1.0 + extra))
+    rng = np.random.default_rng(17)
+    longest = sorted(scen, key=lambda s: -s.optimal_length)[:2]
+    picked = longest + [scen[int(i)] for i in rng.choice(len(scen), queries - 2, replace=False)]
+    for q in picked:
+        plan = plan_grid(blocked, q.start, q.goal, cost=extra, corner_cutting=True)
+        costs, _ = mcp.find_costs([q.start], [q.goal])
+        ref = float(costs[q.goal])
+        assert plan.cost == pytest.approx(ref, rel=1e-12), (name, q.start, q.goal)
+        assert plan.cost > path_cost(plan.cells)  # every cell costs more than 1 per unit length
+        check_path(blocked, plan.cells, start=q.start, goal=q.goal, corner_cutting=True)
+        assert path_cost(plan.cells, extra) == pytest.approx(plan.cost, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize(("connectivity", "cut"), [(8, False), (8, True), (4, False)])
+def test_matches_independent_dijkstra_with_a_high_floor_and_impassable_cells(
+    seed: int, connectivity: int, cut: bool
+) -> None:
+    """The heuristic is scaled by 1 + min(cost) (here ≥ 3): still optimal for every admissible metric."""
+    rng = np.random.default_rng(900 + seed)
+    occ = rng.random((30, 26)) < 0.2
+    cost = rng.uniform(2.0, 5.0, occ.shape)
+    cost[rng.random(occ.shape) < 0.05] = np.inf
+    heuristics = ["octile", "euclidean", "chebyshev"] if connectivity == 8 else ["manhattan", "octile"]
+    for _ in range(5):
+        free = np.argwhere(~occ & np.isfinite(cost))
+        a, b = free[rng.choice(len(free), 2, replace=False)]
+        start, goal = (int(a[0]), int(a[1])), (int(b[0]), int(b[1]))
+        ref = oracle.distances(occ, start, connectivity=connectivity, corner_cutting=cut, cost=cost)[goal]
+        for alg, heur in [("dijkstra", "octile")] + [("astar", h) for h in heuristics]:
+            kwargs = {"algorithm": alg, "heuristic": heur, "connectivity": connectivity, "corner_cutting": cut}
+            if not math.isfinite(ref):
+                with pytest.raises(NoPathFound):
+                    plan_grid(occ, start, goal, cost=cost, **kwargs)
+                continue
+            p = plan_grid(occ, start, goal, cost=cost, **kwargs)
+            assert p.cost == pytest.approx(ref, rel=1e-12), (alg, heur)
+            blocked = occ | np.isinf(cost)
+            check_path(blocked, p.cells, start=start, goal=goal, connectivity=connectivity, corner_cutting=cut)
+            assert path_cost(p.cells, cost) == pytest.approx(p.cost, rel=1e-12)
+
+
+def test_scaled_heuristic_expands_like_unweighted_astar_on_a_uniform_cost() -> None:
+    occ = np.zeros((60, 60), dtype=bool)
+    occ[10:50, 30] = True
+    cost = np.full(occ.shape, 3.0)
+    astar = plan_grid(occ, (30, 5), (30, 55), cost=cost)
+    dijkstra = plan_grid(occ, (30, 5), (30, 55), algorithm="dijkstra", cost=cost)
+    plain = plan_grid(occ, (30, 5), (30, 55))
+    assert astar.cost == pytest.approx(dijkstra.cost, rel=1e-12)
+    assert astar.cost == pytest.approx(4.0 * plain.cost, rel=1e-12)
+    # Scaled by 1 + min(cost) = 4 the octile heuristic is as informed as on the unweighted map.
+    assert astar.expanded <= 1.05 * plain.expanded
+    assert astar.expanded < dijkstra.expanded / 3
+
+
+def test_zero_cost_plateau_is_crossed_without_expanding_it() -> None:
+    """Equal f everywhere on an empty zero-cost grid: the tie-break follows one optimal path."""
+    occ = np.zeros((100, 100), dtype=bool)
+    for goal in [(99, 99), (99, 40), (0, 99)]:
+        p = plan_grid(occ, (0, 0), goal, cost=np.zeros(occ.shape))
+        assert p.expanded == len(p.cells) == 100
+        dr, dc = goal
+        assert p.cost == pytest.approx(max(dr, dc) + (SQRT2 - 1) * min(dr, dc), rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_non_optimal_modes_report_the_cost_of_their_path(seed: int) -> None:
+    rng = np.random.default_rng(40 + seed)
+    occ = rng.random((40, 40)) < 0.25
+    cost = rng.uniform(0.0, 4.0, occ.shape)
+    free = np.argwhere(~occ)
+    a, b = free[rng.choice(len(free), 2, replace=False)]
+    start, goal = (int(a[0]), int(a[1])), (int(b[0]), int(b[1]))
+    ref = oracle.distances(occ, start, cost=cost)[goal]
+    if not math.isfinite(ref):
+        pytest.skip("unreachable pair")
+    for kwargs in ({"algorithm": "greedy"}, {"algorithm": "astar", "weights": (1.0, 5.0)}):
+        p = plan_grid(occ, start, goal, cost=cost, **kwargs)  # type: ignore[arg-type]
+        check_path(occ, p.cells, start=start, goal=goal)
+        assert path_cost(p.cells, cost) == pytest.approx(p.cost, rel=1e-12)
+        assert p.cost >= ref - 1e-9
+
+
+def test_cost_grid_errors_are_typed() -> None:
+    occ = np.zeros((4, 4), dtype=bool)
+    cost = np.zeros((4, 4))
+    cost[0, 0] = np.inf
+    with pytest.raises(StartOccupied):
+        plan_grid(occ, (0, 0), (3, 3), cost=cost)
+    with pytest.raises(GoalOccupied):
+        plan_grid(occ, (3, 3), (0, 0), cost=cost)
+    nan = np.zeros((4, 4))
+    nan[2, 2] = math.nan
+    with pytest.raises(InvalidInput, match="NaN"):
+        plan_grid(occ, (0, 1), (3, 3), cost=nan)
+    with pytest.raises(InvalidInput, match="NaN"):  # NaN is reported even where the map is occupied
+        plan_grid(np.eye(4, dtype=bool)[::-1], (0, 1), (3, 3), cost=nan)
+    with pytest.raises(InvalidInput, match=">= 0"):
+        plan_grid(occ, (0, 1), (3, 3), cost=-np.ones((4, 4)))
+    # An integer cost grid and a non-contiguous occupancy view are accepted.
+    wide = np.zeros((4, 8), dtype=bool)
+    p = plan_grid(wide[:, ::2], (0, 0), (3, 3), cost=np.ones((4, 4), dtype=np.int32))
+    assert p.cost == pytest.approx(3 * SQRT2 * 2.0)
