@@ -9,8 +9,8 @@ read as unvisited and starting a search is O(1): ``base += TAG_SPAN``.
 
 Memory per node: 16 (record) + 8 (BFS queue) + 1 (map copy) bytes, plus the heap (24 bytes per entry,
 initially n / 4 entries, doubled on overflow), once jump point search has run its two bit grids (about
-1/4 byte per node) and once a search with a cost grid has run its (g, w) pairs and parents (20 bytes per node,
-see :mod:`mjnav.planning._weighted`).
+1/4 byte per node) and once a search with a cost grid has run its (g, w) pairs, parents and heap positions
+(28 bytes per node, see :mod:`mjnav.planning._weighted`).
 """
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ class Workspace:
         blocked: uint8 padded grid buffer.
         bits, tbits: uint64 buffers for the bit rows and bit columns of jump point search, grown on demand by
             :meth:`bit_grids`.
-        rec, parent: float64 (g, w) pairs and int32 parents of the cost-grid search, grown on demand by
-            :meth:`cost_grids`.
+        rec, parent, pos: float64 (g, w) pairs, int32 parents and int64 heap positions of the cost-grid search,
+            grown on demand by :meth:`cost_grids`.
         keys, subs, items: binary-heap storage (``items`` doubles as the DFS stack); a kernel that fills it
             reports an overflow and the caller retries after :meth:`grow_heap`.
         base: the tag base of the current search.
@@ -54,6 +54,7 @@ class Workspace:
         self.tbits: NDArray[np.uint64] = np.empty(0, np.uint64)
         self.rec: NDArray[np.float64] = np.empty(0, np.float64)
         self.parent: NDArray[np.int32] = np.empty(0, np.int32)
+        self.pos: NDArray[np.int64] = np.empty(0, np.int64)
         heap = max(1024, capacity // 4)
         self.keys: NDArray[np.float64] = np.empty(heap, np.float64)
         self.subs: NDArray[np.float64] = np.empty(heap, np.float64)
@@ -76,12 +77,13 @@ class Workspace:
             self.tbits = np.empty(n_tbits, np.uint64)
         return self.bits, self.tbits
 
-    def cost_grids(self, n_nodes: int) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
-        """The (g, w) pair and parent buffers of the cost-grid search, grown to at least ``n_nodes`` nodes."""
+    def cost_grids(self, n_nodes: int) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int64]]:
+        """The (g, w) pair, parent and heap-position buffers of the cost-grid search, for at least ``n_nodes``."""
         if self.parent.shape[0] < n_nodes:
             self.rec = np.empty(2 * n_nodes, np.float64)
             self.parent = np.empty(n_nodes, np.int32)
-        return self.rec, self.parent
+            self.pos = np.empty(n_nodes, np.int64)
+        return self.rec, self.parent, self.pos
 
     def grow_heap(self) -> None:
         """Double the heap (and DFS stack) storage; its contents are discarded."""

@@ -391,7 +391,7 @@ def _plan_weighted(
     if n_nodes >= 2**31:
         raise InvalidInput(f"map of {h}×{w} cells is too large (node ids are int32)")
     ws = get_workspace(n_nodes)
-    rec, parent = ws.cost_grids(n_nodes)
+    rec, parent, pos = ws.cost_grids(n_nodes)
     verdict, lowest = weighted.prepare_costs(grid, cost, rec)
     if verdict == weighted.COSTS_NAN:
         raise InvalidInput(_COST_NAN)
@@ -412,7 +412,7 @@ def _plan_weighted(
     while True:
         g_goal, expanded, status = weighted.weighted_search(
             rec, width, sn, tn, connectivity, corner_cutting, alpha, beta, hcode, 1.0 + lowest,
-            parent, ws.keys, ws.items,
+            parent, pos, ws.keys, ws.items,
         )  # fmt: skip
         if status != kern.OVERFLOW:
             break
