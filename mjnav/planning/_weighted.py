@@ -6,9 +6,10 @@ costs d·(1 + (cost[a] + cost[b]) / 2), the trapezoid rule over the per-cell fac
 ``MCP_Geometric`` with costs 1 + cost gives the same optimal costs).
 
 Memory: one float64 pair per padded node, ``rec[2·i] = g`` (cost so far) and ``rec[2·i + 1] = w`` (half the
-step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])), plus an int32 ``parent`` per node, both from the
-thread's :class:`~mjnav.planning._workspace.Workspace`. :func:`prepare_costs` writes every pair once per query
-(validating the cost grid in the same pass), so the search needs no visit tags:
+step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])), an int32 ``parent`` and an int64 heap position
+``pos`` per node, all from the thread's :class:`~mjnav.planning._workspace.Workspace`. :func:`prepare_costs`
+writes every pair once per query (validating the cost grid in the same pass, ~0.5 ms for 512×512), so the
+search needs no visit tags:
 
 * unseen free node: g = +inf; open: g ≥ 0; closed: g stored negated (so −0.0 for the start, which is never
   re-opened: every step costs ≥ 1); blocked (map, +inf cost or the one-cell border): g = −inf, w = +inf.
@@ -22,19 +23,28 @@ d costs at least d·hscale, so the scaled metric stays admissible and consistent
 cells are all near obstacles (random512-40-5 with the benchmark's cost field: hscale ≈ 4.9) this cuts the
 expansions ~3×; elsewhere it is ≈ 1.
 
-Open list: the 4-ary heap ordered by f alone (:func:`~mjnav.planning._kernels.heap4_push`), with lazy deletion
-(stale entries are skipped when popped, the node being closed). Successors whose f equals the popped f (within a
-few ulps) go on a small LIFO stack served before the heap, as in :func:`~mjnav.planning._kernels.best_first`:
-this is the tie-break towards larger g that keeps A* from expanding whole plateaus of equal f on zero-cost
-regions, and it keeps optimality (f never decreases along a path with a consistent heuristic).
+Open list: an indexed 4-ary heap ordered by f alone, with decrease-key (``pos`` gives an open node's heap
+index), so every node is on it at most once and pops equal expansions; sift-down is bottom-up with a
+branch-free choice of the smallest child, as :func:`~mjnav.planning._kernels.heap4_sift_down`. Successors whose
+f equals the popped f (within a few ulps) go on a small LIFO stack served before the heap, as in
+:func:`~mjnav.planning._kernels.best_first`: this is the tie-break towards larger g that keeps A* from expanding
+whole plateaus of equal f on zero-cost regions (an empty 100×100 zero-cost grid corner to corner: 100
+expansions), and it keeps optimality (f never decreases along a path with a consistent heuristic).
 
-Measured (kernel only, 10 longest queries, maze512-32-9 with the benchmark's cost field, same process, best of
-5): the former generic kernel (16-byte visit-tagged records + a separate padded cost array, binary heap ordered
-by (f, h)) took ~200 ns per expansion; the 4-ary heap brought that to ~95 ns, the (g, w) pairs without tags to
-~85-90 ns. Tried and dropped: fully unrolled neighbour relaxation through an inlined helper (2-3× slower as
-compiled by numba); replacing the integer division that recovers (row, col) by a float multiply (no change);
-a two-level bucket queue (bucket width 0.1-1 cost units, a small heap for the current bucket): not clearly
-faster than the 4-ary heap in a synthetic trace with the search's push/pop pattern.
+Measured (kernel only, the 10 longest queries of maze512-32-9 with the benchmark's cost field, ~246 000
+expansions each, i.e. the whole free map: A* cannot prune a maze with an octile heuristic; variants compared in
+one process, best of 5 to 7, thread CPU time where the machine was loaded): the former generic kernel
+(16-byte visit-tagged records + a separate padded cost array, binary heap ordered by (f, h), duplicate entries)
+~200 ns per expansion; a 4-ary f-keyed heap ~95 ns; (g, w) pairs without tags ~85-90 ns; decrease-key instead
+of duplicates (1.63 → 1.0 heap entries per expansion) ~80 ns on the maze and −30 % on Boston_0_256; unsigned
+node indices in the heap's position updates −3 %. A profile of the result: ~60 % in the neighbour loop,
+~25 % in the sift-down. Tried and dropped: fully unrolled neighbour relaxation through an inlined helper
+(2-3× slower as compiled by numba); a float multiply instead of the integer division recovering (row, col)
+(no change); a two-level bucket queue (bucket width 0.05-1 cost units, a small heap for the current bucket)
+replaying the search's own push/pop trace (no faster than the 4-ary heap); prefetching the three neighbour rows
+of a node when it is popped (+5-10 % on the maze); branch-free relaxation collecting the improved neighbours
+first (no change); int32 heap positions (no change). A "hot" buffer for successors that beat the heap top is
+pointless here: on the maze only 2 of 252 000 pushes did.
 """
 
 from __future__ import annotations
@@ -121,13 +131,13 @@ def _sift_up(
             keys[i] = kp
             moved = items[p]
             items[i] = moved
-            pos[moved] = i
+            pos[np.uint64(moved)] = i
             i = p
         else:
             break
     keys[i] = key
     items[i] = item
-    pos[item] = i
+    pos[np.uint64(item)] = i
 
 
 @njit(cache=True)
@@ -158,7 +168,7 @@ def _sift_down(
         keys[i] = keys[m]
         moved = items[m]
         items[i] = moved
-        pos[moved] = i
+        pos[np.uint64(moved)] = i
         i = m
         c = (i << two) + one
     if c < n:  # a last, partial group of children
@@ -171,7 +181,7 @@ def _sift_down(
         keys[i] = keys[m]
         moved = items[m]
         items[i] = moved
-        pos[moved] = i
+        pos[np.uint64(moved)] = i
         i = m
     _sift_up(keys, items, pos, i, key, item)
 
