@@ -6,16 +6,11 @@ costs d·(1 + (cost[a] + cost[b]) / 2), the trapezoid rule over the per-cell fac
 ``MCP_Geometric`` with costs 1 + cost gives the same optimal costs).
 
 Memory: one float64 pair per padded node, ``rec[2·i] = g`` (cost so far) and ``rec[2·i + 1] = w`` (half the
-step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])), an int32 ``parent`` and an int64 heap position
-``pos`` per node, all from the thread's :class:`~mjnav.planning._workspace.Workspace`. :func:`prepare_costs`
-writes every pair once per query (validating the cost grid in the same pass, ~0.5 ms for 512×512), so the
-search needs no visit tags:
-
-* unseen free node: g = +inf; open: g ≥ 0; closed: g stored negated (so −0.0 for the start, which is never
-  re-opened: every step costs ≥ 1); blocked (map, +inf cost or the one-cell border): g = −inf, w = +inf.
-* Relaxing a neighbour is therefore one load of its pair and one comparison: ``d·(w0 + w) < g`` is false for
-  closed and blocked nodes alike, so closed nodes are never re-opened (as in the textbook A* with a consistent
-  heuristic; with an inconsistent one — weighted A*, greedy — paths stay consistent with their reported cost).
+step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])) and an int32 ``parent`` per node, from the thread's
+:class:`~mjnav.planning._workspace.Workspace`. :func:`prepare_costs` writes every pair once per query (validating
+the cost grid in the same pass, ~0.5 ms for 512×512), so the searches need no visit tags: unseen free node
+g = +inf; open g ≥ 0; expanded: g stored negated (−0.0 for the start); blocked (map, +inf cost or the one-cell
+border) g = −inf, w = +inf. Relaxing a neighbour is one load of its pair and one comparison.
 
 Heuristic: the chosen metric (cells) times ``hscale`` = 1 + min(cost) over the free cells. Every step of length
 d costs at least d·hscale, so the scaled metric stays admissible and consistent whenever the metric is
@@ -23,28 +18,41 @@ d costs at least d·hscale, so the scaled metric stays admissible and consistent
 cells are all near obstacles (random512-40-5 with the benchmark's cost field: hscale ≈ 4.9) this cuts the
 expansions ~3×; elsewhere it is ≈ 1.
 
-Open list: an indexed 4-ary heap ordered by f alone, with decrease-key (``pos`` gives an open node's heap
-index), so every node is on it at most once and pops equal expansions; sift-down is bottom-up with a
-branch-free choice of the smallest child, as :func:`~mjnav.planning._kernels.heap4_sift_down`. Successors whose
-f equals the popped f (within a few ulps) go on a small LIFO stack served before the heap, as in
-:func:`~mjnav.planning._kernels.best_first`: this is the tie-break towards larger g that keeps A* from expanding
-whole plateaus of equal f on zero-cost regions (an empty 100×100 zero-cost grid corner to corner: 100
-expansions), and it keeps optimality (f never decreases along a path with a consistent heuristic).
+Two searches over these arrays:
+
+* :func:`bucket_search`, for the optimal modes with a consistent heuristic (A* with α = β, Dijkstra): the
+  open nodes sit in buckets of f of width δ = 0.1·hscale (a circular array of :data:`N_BUCKETS` linked lists),
+  each served last-in first-out, i.e. in no particular f order inside a bucket. That makes it label-correcting
+  (Δ-stepping with the reduced costs of A*, which are ≥ 0 under a consistent heuristic): a node whose g
+  improves after it was expanded is pushed again and expanded again, always into the current bucket or a later
+  one, so once a bucket is empty every node whose f lies below its end has its optimal g. The search stops when
+  the current bucket starts at or above the goal's g (nothing left can beat it, the heuristic being
+  admissible), skipping meanwhile every node whose f is not below the goal's g (:data:`GOAL_TOLERANCE`). Pushing
+  and popping are O(1); the price is the re-expansions: +0.75 % on maze512-32-9, +28 % on Boston_0_256 with
+  the benchmark's cost field (δ = 0.05 halves them and costs as much in bucket scanning). Last-in first-out also
+  crosses zero-cost plateaus of equal f depth first (an empty 100×100 zero-cost grid corner to corner: 99
+  expansions). Keys may run at most :data:`N_BUCKETS`·δ ahead of the current bucket; cost grids whose steps
+  reach further (1 + the largest cost above ~260 × (1 + the smallest)) use the heap search.
+* :func:`weighted_search`, for the others (weighted A*, greedy, Manhattan on 8-connected moves), whose
+  expansion order defines them: an indexed 4-ary heap ordered by f alone, with decrease-key, bottom-up
+  sift-down with a branch-free choice of the smallest child (as :func:`~mjnav.planning._kernels.heap4_sift_down`)
+  and a small LIFO stack, served before the heap, for successors whose f equals the popped f (the tie-break
+  towards larger g). Expanded nodes are never re-opened, so a path's cost is the g it reports.
 
 Measured (kernel only, the 10 longest queries of maze512-32-9 with the benchmark's cost field, ~246 000
 expansions each, i.e. the whole free map: A* cannot prune a maze with an octile heuristic; variants compared in
-one process, best of 5 to 7, thread CPU time where the machine was loaded): the former generic kernel
+one process, best of 3 to 7, thread CPU time where the machine was loaded): the former generic kernel
 (16-byte visit-tagged records + a separate padded cost array, binary heap ordered by (f, h), duplicate entries)
 ~200 ns per expansion; a 4-ary f-keyed heap ~95 ns; (g, w) pairs without tags ~85-90 ns; decrease-key instead
-of duplicates (1.63 → 1.0 heap entries per expansion) ~80 ns on the maze and −30 % on Boston_0_256; unsigned
-node indices in the heap's position updates −3 %. A profile of the result: ~60 % in the neighbour loop,
-~25 % in the sift-down. Tried and dropped: fully unrolled neighbour relaxation through an inlined helper
-(2-3× slower as compiled by numba); a float multiply instead of the integer division recovering (row, col)
-(no change); a two-level bucket queue (bucket width 0.05-1 cost units, a small heap for the current bucket)
-replaying the search's own push/pop trace (no faster than the 4-ary heap); prefetching the three neighbour rows
-of a node when it is popped (+5-10 % on the maze); branch-free relaxation collecting the improved neighbours
-first (no change); int32 heap positions (no change). A "hot" buffer for successors that beat the heap top is
-pointless here: on the maze only 2 of 252 000 pushes did.
+of duplicates (1.63 → 1.0 heap entries per expansion) ~80 ns on the maze and −30 % on Boston_0_256; the bucket
+search ~53 ns (maze −33 %, Boston −22 %, random512-40-5 −30 %, same costs to 1e-9). A profile of the heap
+search: ~60 % in the neighbour loop, ~25 % in the sift-down. Tried and dropped: fully unrolled neighbour
+relaxation through an inlined helper (2-3× slower as compiled by numba); a float multiply instead of the integer
+division recovering (row, col) (no change); an exactly ordered two-level bucket queue (a small heap for the
+current bucket) replaying the heap search's own push/pop trace (no faster than the 4-ary heap); prefetching the
+three neighbour rows of a node when it is popped (+5-10 % on the maze); branch-free relaxation collecting the
+improved neighbours first (no change); int32 heap positions (no change); a "hot" buffer for successors that
+beat the heap top (on the maze only 2 of 252 000 pushes did).
 """
 
 from __future__ import annotations
@@ -60,6 +68,17 @@ from mjnav.planning.heuristics import heuristic_value
 
 SQRT2 = math.sqrt(2.0)
 
+#: :func:`bucket_search` status: a key beyond the bucket window (the caller uses :func:`weighted_search`).
+OUT_OF_WINDOW = -2
+
+#: Bucket array length of :func:`bucket_search` (a power of two) and bucket width in units of the cheapest step
+#: (1 + min cost): keys may run 4096 × 0.1 cheapest steps ahead of the current bucket.
+N_BUCKETS = 4096
+BUCKET_WIDTH = 0.1
+#: :func:`bucket_search` does not expand a node whose f is within this fraction below the goal's g: it could
+#: improve the goal by no more than that, and on plateaus of equal f (zero-cost regions) it would expand them all.
+GOAL_TOLERANCE = 1e-12
+
 #: :func:`prepare_costs` verdicts on the cost grid.
 COSTS_OK = 0
 COSTS_NAN = 1
@@ -69,7 +88,7 @@ COSTS_NEGATIVE = 2
 @njit(cache=True)
 def prepare_costs(
     occupied: NDArray[np.bool_], cost: NDArray[np.float64], rec: NDArray[np.float64]
-) -> tuple[int, float]:  # pragma: no cover - compiled
+) -> tuple[int, float, float]:  # pragma: no cover - compiled
     """Write the (g, w) pair of every padded node for a new search and validate ``cost`` in the same pass.
 
     Args:
@@ -78,8 +97,8 @@ def prepare_costs(
         rec: float64 storage of at least 2·(H + 2)·(W + 2) values; see the module docstring.
 
     Returns:
-        (verdict: :data:`COSTS_OK`, :data:`COSTS_NAN` or :data:`COSTS_NEGATIVE` (NaN wins), the smallest cost
-        of a free cell, +inf when there is none).
+        (verdict: :data:`COSTS_OK`, :data:`COSTS_NAN` or :data:`COSTS_NEGATIVE` (NaN wins), the smallest and the
+        largest cost of a free cell: +inf and −inf when there is none).
     """
     h, w = occupied.shape
     width = w + 2
@@ -95,6 +114,7 @@ def prepare_costs(
         rec[j] = -inf
         rec[j + 1] = inf
     lo = inf
+    hi = -inf
     nan = False
     negative = False
     for r in range(h):
@@ -112,9 +132,10 @@ def prepare_costs(
             rec[j] = g_of[blocked]
             rec[j + 1] = max(0.5 + 0.5 * e, w_floor[blocked])
             lo = min(lo, max(e, w_floor[blocked]))
+            hi = max(hi, min(e, g_of[blocked]))
     if nan:
-        return COSTS_NAN, lo
-    return (COSTS_NEGATIVE if negative else COSTS_OK), lo
+        return COSTS_NAN, lo, hi
+    return (COSTS_NEGATIVE if negative else COSTS_OK), lo, hi
 
 
 @njit(cache=True, inline="always")
@@ -304,6 +325,144 @@ def weighted_search(
                 else:
                     _sift_up(keys, items, pos, np.uint64(size), key, nb)
                     size += 1
+    return inf, expanded, NOT_FOUND
+
+
+@njit(cache=True)
+def bucket_search(
+    rec: NDArray[np.float64],
+    width: int,
+    start: int,
+    goal: int,
+    n_moves: int,
+    corner_cutting: bool,
+    hweight: float,
+    hcode: int,
+    delta: float,
+    parent: NDArray[np.int32],
+    entries: NDArray[np.int64],
+    links: NDArray[np.int64],
+    heads: NDArray[np.int64],
+) -> tuple[float, int, int]:  # pragma: no cover - compiled
+    """Optimal search with priority f = g + hweight·h in buckets of width ``delta`` (see the module docstring).
+
+    The heuristic must be consistent (f never decreases along an edge), ``hweight·h`` a lower bound of the
+    remaining cost, and every key pushed less than ``heads.shape[0]·delta`` above the current bucket's start.
+
+    Args:
+        rec: (g, w) pairs from :func:`prepare_costs`.
+        width: padded width W + 2.
+        start: start node (free).
+        goal: goal node (free, ≠ start).
+        n_moves: 4 or 8.
+        corner_cutting: allow diagonal steps past blocked orthogonal cells.
+        hweight: factor on the heuristic (0 for Dijkstra).
+        hcode: heuristic code (:data:`mjnav.planning.heuristics.HEURISTIC_CODES`).
+        delta: bucket width, cost units.
+        parent: int32 per node, written for every node reached.
+        entries: bucket entries (nodes), the entry pool.
+        links: next entry in the same bucket (or in the free list), one per pool slot.
+        heads: first entry of each bucket of the circular bucket array (its length, a power of two); any content.
+
+    Returns:
+        (g of the goal, number of expansions (a node whose g improved after its expansion counts again),
+        status: FOUND, NOT_FOUND, OVERFLOW when the pool is full, or :data:`OUT_OF_WINDOW`).
+    """
+    inf = np.inf
+    one = np.uint64(1)
+    mask = heads.shape[0] - 1
+    heads[:] = -1
+    offs = np.empty(8, np.int64)
+    lens = np.empty(8, np.float64)
+    for k in range(8):
+        offs[k] = MOVE_DR[k] * width + MOVE_DC[k]
+        lens[k] = SQRT2 if k >= 4 else 1.0
+    inv = 1.0 / delta
+    gr = goal // width
+    gc = goal - gr * width
+    sr = start // width
+    sc = start - sr * width
+    rec[2 * start] = 0.0
+    parent[start] = -1
+    cur_b = int(hweight * heuristic_value(hcode, float(abs(sr - gr)), float(abs(sc - gc))) * inv)
+    entries[0] = start
+    links[0] = -1
+    heads[cur_b & mask] = 0
+    used = 1  # pool slots handed out so far; freed slots are chained from free
+    free = -1
+    count = 1  # entries in the buckets
+    expanded = 0
+    g_goal = inf
+    g_cut = inf
+    fn = fs = fw = fe = True
+    up = np.uint64(2 * width)
+    while count > 0 and cur_b * delta < g_goal:
+        b = cur_b & mask
+        e = heads[b]
+        if e < 0:
+            cur_b += 1
+            continue
+        heads[b] = links[e]
+        links[e] = free
+        free = e
+        count -= 1
+        cur = entries[e]
+        cu = np.uint64(2 * cur)
+        g0 = rec[cu]
+        if g0 < 0.0 or (g0 == 0.0 and expanded > 0):
+            continue  # expanded with its current g already (−0.0: the start): a stale entry
+        cr = cur // width
+        cc = cur - cr * width
+        if g0 + hweight * heuristic_value(hcode, float(abs(cr - gr)), float(abs(cc - gc))) >= g_cut:
+            continue  # cannot lead to a cheaper goal path (within GOAL_TOLERANCE)
+        rec[cu] = -g0
+        expanded += 1
+        w0 = rec[cu + one]
+        if not corner_cutting:
+            fn = rec[cu - up + one] != inf
+            fs = rec[cu + up + one] != inf
+            fw = rec[cu - one] != inf
+            fe = rec[cu + np.uint64(3)] != inf
+        for k in range(n_moves):
+            if k >= 4 and not corner_cutting:
+                if k == 4:
+                    ok = fn and fw
+                elif k == 5:
+                    ok = fn and fe
+                elif k == 6:
+                    ok = fs and fw
+                else:
+                    ok = fs and fe
+                if not ok:
+                    continue
+            nb = cur + offs[k]
+            j = np.uint64(2 * nb)
+            ng = g0 + lens[k] * (w0 + rec[j + one])
+            if ng < abs(rec[j]):  # false for blocked nodes (w = +inf, so ng = +inf)
+                rec[j] = ng
+                parent[nb] = cur
+                if nb == goal:
+                    g_goal = ng
+                    g_cut = ng * (1.0 - GOAL_TOLERANCE)
+                    continue
+                h = heuristic_value(hcode, float(abs(cr + MOVE_DR[k] - gr)), float(abs(cc + MOVE_DC[k] - gc)))
+                nb_b = max(int((ng + hweight * h) * inv), cur_b)  # (a key a few ulps below the bucket: this one)
+                if nb_b - cur_b > mask:
+                    return inf, expanded, OUT_OF_WINDOW
+                if free >= 0:
+                    slot = free
+                    free = links[slot]
+                elif used < entries.shape[0]:
+                    slot = used
+                    used += 1
+                else:
+                    return inf, expanded, OVERFLOW
+                entries[slot] = nb
+                links[slot] = heads[nb_b & mask]
+                heads[nb_b & mask] = slot
+                count += 1
+    if g_goal < inf:
+        return g_goal, expanded, FOUND
     return inf, expanded, NOT_FOUND
 
 

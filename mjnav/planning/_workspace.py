@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjnav.planning._kernels import NODE_DTYPE, TAG_SPAN
+from mjnav.planning._weighted import N_BUCKETS
 
 #: Grids up to this many (padded) nodes keep their workspace between calls (≈ 31 bytes per node).
 MAX_CACHED_NODES = 1 << 24
@@ -40,8 +41,11 @@ class Workspace:
             :meth:`bit_grids`.
         rec, parent, pos: float64 (g, w) pairs, int32 parents and int64 heap positions of the cost-grid search,
             grown on demand by :meth:`cost_grids`.
-        keys, subs, items: binary-heap storage (``items`` doubles as the DFS stack); a kernel that fills it
-            reports an overflow and the caller retries after :meth:`grow_heap`.
+        heads: bucket heads of the cost-grid bucket search.
+        keys, subs, items: binary-heap storage (``items`` doubles as the DFS stack and, with ``links``, as the
+            entry pool of the cost-grid bucket search); a kernel that fills it reports an overflow and the caller
+            retries after :meth:`grow_heap`.
+        links: int64, as long as ``items``: next-entry links of the bucket search.
         base: the tag base of the current search.
     """
 
@@ -55,10 +59,12 @@ class Workspace:
         self.rec: NDArray[np.float64] = np.empty(0, np.float64)
         self.parent: NDArray[np.int32] = np.empty(0, np.int32)
         self.pos: NDArray[np.int64] = np.empty(0, np.int64)
+        self.heads: NDArray[np.int64] = np.empty(N_BUCKETS, np.int64)
         heap = max(1024, capacity // 4)
         self.keys: NDArray[np.float64] = np.empty(heap, np.float64)
         self.subs: NDArray[np.float64] = np.empty(heap, np.float64)
         self.items: NDArray[np.int64] = np.empty(heap, np.int64)
+        self.links: NDArray[np.int64] = np.empty(heap, np.int64)
         self.base = 0
 
     def begin(self) -> int:
@@ -86,11 +92,12 @@ class Workspace:
         return self.rec, self.parent, self.pos
 
     def grow_heap(self) -> None:
-        """Double the heap (and DFS stack) storage; its contents are discarded."""
+        """Double the heap (DFS stack, bucket pool) storage; its contents are discarded."""
         n = 2 * self.keys.shape[0]
         self.keys = np.empty(n, np.float64)
         self.subs = np.empty(n, np.float64)
         self.items = np.empty(n, np.int64)
+        self.links = np.empty(n, np.int64)
 
 
 _local = threading.local()

@@ -33,7 +33,7 @@ from mjnav.planning.errors import (
     StartOccupied,
     StartOutsideMap,
 )
-from mjnav.planning.heuristics import heuristic_code
+from mjnav.planning.heuristics import HEURISTIC_CODES, heuristic_code
 from mjnav.planning.jps import grid_layout, jump_point_search, prepare_grid, trace_jump_path
 
 if TYPE_CHECKING:
@@ -392,7 +392,7 @@ def _plan_weighted(
         raise InvalidInput(f"map of {h}×{w} cells is too large (node ids are int32)")
     ws = get_workspace(n_nodes)
     rec, parent, pos = ws.cost_grids(n_nodes)
-    verdict, lowest = weighted.prepare_costs(grid, cost, rec)
+    verdict, lowest, highest = weighted.prepare_costs(grid, cost, rec)
     if verdict == weighted.COSTS_NAN:
         raise InvalidInput(_COST_NAN)
     if verdict == weighted.COSTS_NEGATIVE:
@@ -409,14 +409,32 @@ def _plan_weighted(
         raise GoalOccupied(t)
     if s == t:
         return GridPlan(np.array([s], dtype=np.int64), 0.0, 0, algorithm)
+    hscale = 1.0 + lowest
+    # Optimal modes with a consistent heuristic run the bucket search; the others (weighted A*, greedy, Manhattan
+    # on 8-connected moves) the heap search, whose expansion order defines them. Keys run at most a step's cost
+    # plus the heuristic's change ahead of the current bucket: the bucket array must cover that.
+    hweight = 0.0 if beta == 0.0 else (hscale if alpha == beta else -1.0)
+    consistent = beta == 0.0 or hcode != HEURISTIC_CODES["manhattan"] or connectivity == 4
+    delta = weighted.BUCKET_WIDTH * hscale
+    reach = SQRT2 * (1.0 + highest + max(hweight, 0.0))
+    use_buckets = hweight >= 0.0 and consistent and reach < 0.9 * weighted.N_BUCKETS * delta
     while True:
-        g_goal, expanded, status = weighted.weighted_search(
-            rec, width, sn, tn, connectivity, corner_cutting, alpha, beta, hcode, 1.0 + lowest,
-            parent, pos, ws.keys, ws.items,
-        )  # fmt: skip
-        if status != kern.OVERFLOW:
+        if use_buckets:
+            g_goal, expanded, status = weighted.bucket_search(
+                rec, width, sn, tn, connectivity, corner_cutting, hweight, hcode, delta,
+                parent, ws.items, ws.links, ws.heads,
+            )  # fmt: skip
+        else:
+            g_goal, expanded, status = weighted.weighted_search(
+                rec, width, sn, tn, connectivity, corner_cutting, alpha, beta, hcode, hscale,
+                parent, pos, ws.keys, ws.items,
+            )  # fmt: skip
+        if status == weighted.OUT_OF_WINDOW:
+            use_buckets = False
+        elif status == kern.OVERFLOW:
+            ws.grow_heap()
+        else:
             break
-        ws.grow_heap()
         weighted.prepare_costs(grid, cost, rec)
     if status != kern.FOUND:
         raise NoPathFound(f"no path from {s} to {t} ({algorithm} expanded {expanded} nodes)")
