@@ -378,6 +378,7 @@ def bucket_search(
         offs[k] = MOVE_DR[k] * width + MOVE_DC[k]
         lens[k] = SQRT2 if k >= 4 else 1.0
     inv = 1.0 / delta
+    octile = hcode == 3
     gr = goal // width
     gc = goal - gr * width
     sr = start // width
@@ -394,9 +395,10 @@ def bucket_search(
     expanded = 0
     g_goal = inf
     g_cut = inf
-    fn = fs = fw = fe = True
+    all_moves = 255
     up = np.uint64(2 * width)
-    while count > 0 and cur_b * delta < g_goal:
+    stop_b = np.iinfo(np.int64).max  # the bucket after the goal's, once the goal is reached
+    while count > 0 and cur_b < stop_b:
         b = cur_b & mask
         e = heads[b]
         if e < 0:
@@ -413,28 +415,21 @@ def bucket_search(
             continue  # expanded with its current g already (−0.0: the start): a stale entry
         cr = cur // width
         cc = cur - cr * width
-        if g0 + hweight * heuristic_value(hcode, float(abs(cr - gr)), float(abs(cc - gc))) >= g_cut:
+        if g_cut < inf and g0 + hweight * heuristic_value(hcode, float(abs(cr - gr)), float(abs(cc - gc))) >= g_cut:
             continue  # cannot lead to a cheaper goal path (within GOAL_TOLERANCE)
         rec[cu] = -g0
         expanded += 1
         w0 = rec[cu + one]
+        allowed = all_moves
         if not corner_cutting:
-            fn = rec[cu - up + one] != inf
-            fs = rec[cu + up + one] != inf
-            fw = rec[cu - one] != inf
-            fe = rec[cu + np.uint64(3)] != inf
+            fn = int(rec[cu - up + one] != inf)
+            fs = int(rec[cu + up + one] != inf)
+            fw = int(rec[cu - one] != inf)
+            fe = int(rec[cu + np.uint64(3)] != inf)
+            allowed = 15 | ((fn & fw) << 4) | ((fn & fe) << 5) | ((fs & fw) << 6) | ((fs & fe) << 7)
         for k in range(n_moves):
-            if k >= 4 and not corner_cutting:
-                if k == 4:
-                    ok = fn and fw
-                elif k == 5:
-                    ok = fn and fe
-                elif k == 6:
-                    ok = fs and fw
-                else:
-                    ok = fs and fe
-                if not ok:
-                    continue
+            if not (allowed >> k) & 1:
+                continue
             nb = cur + offs[k]
             j = np.uint64(2 * nb)
             ng = g0 + lens[k] * (w0 + rec[j + one])
@@ -444,8 +439,11 @@ def bucket_search(
                 if nb == goal:
                     g_goal = ng
                     g_cut = ng * (1.0 - GOAL_TOLERANCE)
+                    stop_b = int(ng * inv) + 1
                     continue
-                h = heuristic_value(hcode, float(abs(cr + MOVE_DR[k] - gr)), float(abs(cc + MOVE_DC[k] - gc)))
+                hr = float(abs(cr + MOVE_DR[k] - gr))
+                hc = float(abs(cc + MOVE_DC[k] - gc))
+                h = max(hr, hc) + (SQRT2 - 1.0) * min(hr, hc) if octile else heuristic_value(hcode, hr, hc)
                 nb_b = max(int((ng + hweight * h) * inv), cur_b)  # (a key a few ulps below the bucket: this one)
                 if nb_b - cur_b > mask:
                     return inf, expanded, OUT_OF_WINDOW
