@@ -6,7 +6,7 @@ costs d·(1 + (cost[a] + cost[b]) / 2), the trapezoid rule over the per-cell fac
 ``MCP_Geometric`` with costs 1 + cost gives the same optimal costs).
 
 Memory: one float64 pair per padded node, ``rec[2·i] = g`` (cost so far) and ``rec[2·i + 1] = w`` (half the
-step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])) and an int32 ``parent`` per node, from the thread's
+step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])), from the thread's
 :class:`~mjnav.planning._workspace.Workspace`. :func:`prepare_costs` writes every pair once per query (validating
 the cost grid in the same pass, ~0.5 ms for 512×512), so the searches need no visit tags: unseen free node
 g = +inf; open g ≥ 0; expanded: g stored negated (−0.0 for the start); blocked (map, +inf cost or the one-cell
@@ -221,7 +221,6 @@ def weighted_search(
     beta: float,
     hcode: int,
     hscale: float,
-    parent: NDArray[np.int32],
     pos: NDArray[np.int64],
     keys: NDArray[np.float64],
     items: NDArray[np.int64],
@@ -239,7 +238,6 @@ def weighted_search(
         beta: weight of h.
         hcode: heuristic code (:data:`mjnav.planning.heuristics.HEURISTIC_CODES`).
         hscale: factor on the heuristic, 1 + the smallest free-cell cost.
-        parent: int32 per node, written for every node reached.
         pos: int64 per node, its index in the heap while it is open (−1 when it waits on the LIFO stack); read
             only for open nodes, so it needs no initialisation.
         keys: heap storage (priorities).
@@ -258,7 +256,6 @@ def weighted_search(
     gr = goal // width
     gc = goal - gr * width
     rec[2 * start] = 0.0
-    parent[start] = -1
     _sift_up(keys, items, pos, np.uint64(0), 0.0, start)
     size = 1
     expanded = 0
@@ -315,7 +312,6 @@ def weighted_search(
                 if size == keys.shape[0]:
                     return inf, expanded, OVERFLOW
                 rec[j] = ng
-                parent[nb] = cur
                 h = heuristic_value(hcode, float(abs(cr + MOVE_DR[k] - gr)), float(abs(cc + MOVE_DC[k] - gc)))
                 key = alpha * ng + beta * (hscale * h)
                 if old != inf and pos[nb] >= 0:  # open, on the heap: decrease its key
@@ -341,7 +337,6 @@ def bucket_search(
     hweight: float,
     hcode: int,
     delta: float,
-    parent: NDArray[np.int32],
     entries: NDArray[np.int64],
     links: NDArray[np.int64],
     heads: NDArray[np.int64],
@@ -361,7 +356,6 @@ def bucket_search(
         hweight: factor on the heuristic (0 for Dijkstra).
         hcode: heuristic code (:data:`mjnav.planning.heuristics.HEURISTIC_CODES`).
         delta: bucket width, cost units.
-        parent: int32 per node, written for every node reached.
         entries: bucket entries (nodes), the entry pool.
         links: next entry in the same bucket (or in the free list), one per pool slot.
         heads: first entry of each bucket of the circular bucket array (its length, a power of two); any content.
@@ -386,7 +380,6 @@ def bucket_search(
     sr = start // width
     sc = start - sr * width
     rec[2 * start] = 0.0
-    parent[start] = -1
     cur_b = int(hweight * heuristic_value(hcode, float(abs(sr - gr)), float(abs(sc - gc))) * inv)
     entries[0] = start
     links[0] = -1
@@ -446,7 +439,6 @@ def bucket_search(
             ng = g0 + lens[k] * (w0 + rec[j + one])
             if ng < abs(rec[j]):  # false for blocked nodes (w = +inf, so ng = +inf)
                 rec[j] = ng
-                parent[nb] = cur
                 if nb == goal:
                     g_goal = ng
                     g_cut = ng * (1.0 - GOAL_TOLERANCE)
@@ -476,19 +468,61 @@ def bucket_search(
 
 
 @njit(cache=True)
-def trace_parents(parent: NDArray[np.int32], width: int, start: int, goal: int) -> NDArray[np.int64]:
-    """(N, 2) (row, col) cells of the unpadded map from ``start`` to ``goal`` along ``parent``."""
-    count = 1
+def trace_back(
+    rec: NDArray[np.float64], width: int, start: int, goal: int, n_moves: int, corner_cutting: bool
+) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """(N, 2) (row, col) cells of the unpadded map from ``start`` to ``goal``, read back from the g values.
+
+    The searches keep no parent links: a node's g was set as g(u) + d·(w(u) + w(v)) by the neighbour u that
+    reached it, which was expanded at the time and kept that g (or, in the bucket search, improved it and then
+    improved the node too). So from the goal each step back goes to a neighbour u, reached by a legal move, with
+    exactly that sum; should rounding leave none (improvements smaller than an ulp), to the neighbour with the
+    smallest such sum below the node's g. g decreases strictly along the way, so it ends at the start.
+    """
+    inf = np.inf
+    up = 2 * width
+    cells = np.empty((64, 2), np.int64)
+    count = 0
     node = goal
-    while node != start:
-        node = parent[node]
-        count += 1
-    out = np.empty((count, 2), np.int64)
-    node = goal
-    for i in range(count - 1, -1, -1):
+    while True:
+        if count == cells.shape[0]:
+            grown = np.empty((2 * count, 2), np.int64)
+            grown[:count] = cells
+            cells = grown
         r = node // width
-        out[i, 0] = r - 1
-        out[i, 1] = node - r * width - 1
-        if i > 0:
-            node = parent[node]
+        cells[count, 0] = r - 1
+        cells[count, 1] = node - r * width - 1
+        count += 1
+        if node == start:
+            break
+        j = 2 * node
+        g = abs(rec[j])
+        w = rec[j + 1]
+        fn = rec[j - up + 1] != inf
+        fs = rec[j + up + 1] != inf
+        fw = rec[j - 1] != inf
+        fe = rec[j + 3] != inf
+        best = -1
+        best_g = g
+        for k in range(n_moves):
+            if k >= 4 and not corner_cutting:
+                # The move u → node passes the cells beside node opposite to its direction.
+                ok = (fn if MOVE_DR[k] > 0 else fs) and (fw if MOVE_DC[k] > 0 else fe)
+                if not ok:
+                    continue
+            u = node - (MOVE_DR[k] * width + MOVE_DC[k])
+            ju = 2 * u
+            via = abs(rec[ju]) + (SQRT2 if k >= 4 else 1.0) * (rec[ju + 1] + w)
+            if via == g:
+                best = u
+                break
+            if via < best_g:
+                best = u
+                best_g = via
+        if best < 0:
+            raise RuntimeError("trace_back: a reached node without a predecessor")
+        node = best
+    out = np.empty((count, 2), np.int64)
+    for i in range(count):
+        out[i] = cells[count - 1 - i]
     return out

@@ -9,8 +9,8 @@ read as unvisited and starting a search is O(1): ``base += TAG_SPAN``.
 
 Memory per node: 16 (record) + 8 (BFS queue) + 1 (map copy) bytes, plus the heap (24 bytes per entry,
 initially n / 4 entries, doubled on overflow), once jump point search has run its two bit grids (about
-1/4 byte per node) and once a search with a cost grid has run its (g, w) pairs, parents and heap positions
-(28 bytes per node, see :mod:`mjnav.planning._weighted`).
+1/4 byte per node) and once a search with a cost grid has run its (g, w) pairs and heap positions
+(24 bytes per node, see :mod:`mjnav.planning._weighted`).
 """
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ class Workspace:
         blocked: uint8 padded grid buffer.
         bits, tbits: uint64 buffers for the bit rows and bit columns of jump point search, grown on demand by
             :meth:`bit_grids`.
-        rec, parent, pos: float64 (g, w) pairs, int32 parents and int64 heap positions of the cost-grid search,
-            grown on demand by :meth:`cost_grids`.
+        rec, pos: float64 (g, w) pairs and int64 heap positions of the cost-grid searches, grown on demand by
+            :meth:`cost_grids`.
         heads: bucket heads of the cost-grid bucket search.
         keys, subs, items: binary-heap storage (``items`` doubles as the DFS stack and, with ``links``, as the
             entry pool of the cost-grid bucket search); a kernel that fills it reports an overflow and the caller
@@ -57,7 +57,6 @@ class Workspace:
         self.bits: NDArray[np.uint64] = np.empty(0, np.uint64)
         self.tbits: NDArray[np.uint64] = np.empty(0, np.uint64)
         self.rec: NDArray[np.float64] = np.empty(0, np.float64)
-        self.parent: NDArray[np.int32] = np.empty(0, np.int32)
         self.pos: NDArray[np.int64] = np.empty(0, np.int64)
         self.heads: NDArray[np.int64] = np.empty(N_BUCKETS, np.int64)
         heap = max(1024, capacity // 4)
@@ -83,13 +82,12 @@ class Workspace:
             self.tbits = np.empty(n_tbits, np.uint64)
         return self.bits, self.tbits
 
-    def cost_grids(self, n_nodes: int) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int64]]:
-        """The (g, w) pair, parent and heap-position buffers of the cost-grid search, for at least ``n_nodes``."""
-        if self.parent.shape[0] < n_nodes:
+    def cost_grids(self, n_nodes: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """The (g, w) pair and heap-position buffers of the cost-grid searches, for at least ``n_nodes`` nodes."""
+        if self.pos.shape[0] < n_nodes:
             self.rec = np.empty(2 * n_nodes, np.float64)
-            self.parent = np.empty(n_nodes, np.int32)
             self.pos = np.empty(n_nodes, np.int64)
-        return self.rec, self.parent, self.pos
+        return self.rec, self.pos
 
     def grow_heap(self) -> None:
         """Double the heap (DFS stack, bucket pool) storage; its contents are discarded."""

@@ -391,7 +391,7 @@ def _plan_weighted(
     if n_nodes >= 2**31:
         raise InvalidInput(f"map of {h}×{w} cells is too large (node ids are int32)")
     ws = get_workspace(n_nodes)
-    rec, parent, pos = ws.cost_grids(n_nodes)
+    rec, pos = ws.cost_grids(n_nodes)
     verdict, lowest, highest = weighted.prepare_costs(grid, cost, rec)
     if verdict == weighted.COSTS_NAN:
         raise InvalidInput(_COST_NAN)
@@ -422,12 +422,12 @@ def _plan_weighted(
         if use_buckets:
             g_goal, expanded, status = weighted.bucket_search(
                 rec, width, sn, tn, connectivity, corner_cutting, hweight, hcode, delta,
-                parent, ws.items, ws.links, ws.heads,
+                ws.items, ws.links, ws.heads,
             )  # fmt: skip
         else:
             g_goal, expanded, status = weighted.weighted_search(
                 rec, width, sn, tn, connectivity, corner_cutting, alpha, beta, hcode, hscale,
-                parent, pos, ws.keys, ws.items,
+                pos, ws.keys, ws.items,
             )  # fmt: skip
         if status == weighted.OUT_OF_WINDOW:
             use_buckets = False
@@ -438,7 +438,8 @@ def _plan_weighted(
         weighted.prepare_costs(grid, cost, rec)
     if status != kern.FOUND:
         raise NoPathFound(f"no path from {s} to {t} ({algorithm} expanded {expanded} nodes)")
-    return GridPlan(weighted.trace_parents(parent, width, sn, tn), float(g_goal), int(expanded), algorithm)
+    cells = weighted.trace_back(rec, width, sn, tn, connectivity, corner_cutting)
+    return GridPlan(cells, float(g_goal), int(expanded), algorithm)
 
 
 # ---------------------------------------------------------------------------------------------------------------
