@@ -161,3 +161,25 @@ def test_bucket_and_heap_searches_agree_and_wide_cost_ranges_use_the_heap(monkey
     forced = plan_grid(occ, (0, 0), (39, 39), cost=cost)
     assert forced.cost == pytest.approx(ref, rel=1e-12)
     check_path(occ, forced.cells, start=(0, 0), goal=(39, 39))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_plateaus_with_islands_of_cost_match_independent_dijkstra(seed: int) -> None:
+    """Zero-cost plateaus (ties everywhere) broken by costly cells: the bucket search's re-expansions, skipped
+    pushes and goal cut-off must still give the optimum."""
+    rng = np.random.default_rng(1200 + seed)
+    occ = rng.random((35, 35)) < 0.15
+    cost = np.where(rng.random(occ.shape) < 0.3, rng.choice([0.5, 2.0, 6.0], occ.shape), 0.0)
+    free = np.argwhere(~occ)
+    for cut in (False, True):
+        for _ in range(4):
+            a, b = free[rng.choice(len(free), 2, replace=False)]
+            start, goal = (int(a[0]), int(a[1])), (int(b[0]), int(b[1]))
+            ref = oracle.distances(occ, start, corner_cutting=cut, cost=cost)[goal]
+            if not math.isfinite(ref):
+                continue
+            for alg in ("astar", "dijkstra"):
+                p = plan_grid(occ, start, goal, algorithm=alg, cost=cost, corner_cutting=cut)
+                assert p.cost == pytest.approx(ref, rel=1e-12), (alg, cut)
+                check_path(occ, p.cells, start=start, goal=goal, corner_cutting=cut)
+                assert path_cost(p.cells, cost) == pytest.approx(p.cost, rel=1e-12)
