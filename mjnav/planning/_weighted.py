@@ -8,7 +8,7 @@ costs d·(1 + (cost[a] + cost[b]) / 2), the trapezoid rule over the per-cell fac
 Memory: one float64 pair per padded node, ``rec[2·i] = g`` (cost so far) and ``rec[2·i + 1] = w`` (half the
 step factor, (1 + cost) / 2, so a step costs d·(w[a] + w[b])), from the thread's
 :class:`~mjnav.planning._workspace.Workspace`. :func:`prepare_costs` writes every pair once per query (validating
-the cost grid in the same pass, ~0.5 ms for 512×512), so the searches need no visit tags: unseen free node
+the cost grid in the same pass, ~0.12 ms for 512×512), so the searches need no visit tags: unseen free node
 g = +inf; open g ≥ 0; expanded: g stored negated (−0.0 for the start); blocked (map, +inf cost or the one-cell
 border) g = −inf, w = +inf. Relaxing a neighbour is one load of its pair and one comparison.
 
@@ -95,50 +95,57 @@ def prepare_costs(
     """Write the (g, w) pair of every padded node for a new search and validate ``cost`` in the same pass.
 
     Args:
-        occupied: (H, W) bool, True = blocked.
-        cost: (H, W) float64 extra cost per unit length, ≥ 0 or +inf (impassable).
+        occupied: (H, W) C-contiguous bool, True = blocked.
+        cost: (H, W) C-contiguous float64 extra cost per unit length, ≥ 0 or +inf (impassable).
         rec: float64 storage of at least 2·(H + 2)·(W + 2) values; see the module docstring.
 
     Returns:
         (verdict: :data:`COSTS_OK`, :data:`COSTS_NAN` or :data:`COSTS_NEGATIVE` (NaN wins), the smallest and the
-        largest cost of a free cell: +inf and −inf when there is none).
+        largest cost of a free cell: +inf and 0 when there is none).
+
+    The loop is written so that LLVM vectorises it (0.51 → 0.12 ms for 512×512): each pair is one complex128
+    store, and the checks and the smallest/largest cost are integer reductions over the costs' bit patterns
+    (for floats ≥ 0 the bit pattern orders like the value; NaN and negative patterns are told apart first).
     """
     h, w = occupied.shape
     width = w + 2
     inf = np.inf
-    # Indexed by "blocked" (0 or 1): the per-cell choices below are table look-ups, not branches, which
-    # mispredict on cluttered maps (random512-40-5: 0.93 -> 0.51 ms per 512×512 pass).
-    g_of = np.array([inf, -inf])
-    w_floor = np.array([-inf, inf])
+    inf_bits = np.int64(0x7FF0000000000000)
+    no_sign = np.int64(0x7FFFFFFFFFFFFFFF)
+    minus_zero = np.int64(-0x8000000000000000)
+    occ = occupied.ravel().view(np.uint8)
+    values = cost.ravel()
+    bits = values.view(np.int64)
+    pairs = rec.view(np.complex128)
+    border = complex(-inf, inf)  # g = −inf, w = +inf: blocked
     for c in range(width):
-        rec[2 * c] = -inf
-        rec[2 * c + 1] = inf
-        j = 2 * ((h + 1) * width + c)
-        rec[j] = -inf
-        rec[j + 1] = inf
-    lo = inf
-    hi = -inf
-    nan = False
-    negative = False
+        pairs[c] = border
+        pairs[(h + 1) * width + c] = border
+    lo = inf_bits
+    hi = np.int64(0)
+    nan = np.int64(0)
+    negative = np.int64(0)
     for r in range(h):
-        row = 2 * (r + 1) * width
-        rec[row] = -inf
-        rec[row + 1] = inf
-        rec[row + 2 * width - 2] = -inf
-        rec[row + 2 * width - 1] = inf
+        row = (r + 1) * width
+        pairs[row] = border
+        pairs[row + width - 1] = border
+        src = r * w
         for c in range(w):
-            e = cost[r, c]
-            nan |= e != e
-            negative |= e < 0.0
-            blocked = np.uint8(occupied[r, c] | (e == inf))
-            j = row + 2 * c + 2
-            rec[j] = g_of[blocked]
-            rec[j + 1] = max(0.5 + 0.5 * e, w_floor[blocked])
-            lo = min(lo, max(e, w_floor[blocked]))
-            hi = max(hi, min(e, g_of[blocked]))
+            e = values[src + c]
+            x = bits[src + c]
+            nan |= np.int64((x & no_sign) > inf_bits)
+            negative |= np.int64((x < 0) & (x != minus_zero))
+            blocked = (occ[src + c] != 0) | (x == inf_bits)
+            pairs[row + 1 + c] = border if blocked else complex(inf, 0.5 + 0.5 * e)
+            lo = min(lo, inf_bits if blocked else x)
+            hi = max(hi, np.int64(0) if blocked else x)
+    extremes = np.empty(2, np.int64)
+    extremes[0] = lo
+    extremes[1] = hi
+    lo_hi = extremes.view(np.float64)
     if nan:
-        return COSTS_NAN, lo, hi
-    return (COSTS_NEGATIVE if negative else COSTS_OK), lo, hi
+        return COSTS_NAN, lo_hi[0], lo_hi[1]
+    return (COSTS_NEGATIVE if negative else COSTS_OK), lo_hi[0], lo_hi[1]
 
 
 @njit(cache=True, inline="always")

@@ -392,6 +392,8 @@ def _plan_weighted(
         raise InvalidInput(f"map of {h}×{w} cells is too large (node ids are int32)")
     ws = get_workspace(n_nodes)
     rec, pos = ws.cost_grids(n_nodes)
+    grid = np.ascontiguousarray(grid)
+    cost = np.ascontiguousarray(cost)
     verdict, lowest, highest = weighted.prepare_costs(grid, cost, rec)
     if verdict == weighted.COSTS_NAN:
         raise InvalidInput(_COST_NAN)
