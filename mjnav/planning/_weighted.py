@@ -29,10 +29,10 @@ Two searches over these arrays:
   improved f falls in the bucket its entry is in is not pushed again (Boston −10 %). The search stops when
   the current bucket starts at or above the goal's g (nothing left can beat it, the heuristic being
   admissible), skipping meanwhile every node whose f is not below the goal's g (:data:`GOAL_TOLERANCE`). Pushing
-  and popping are O(1); the price is the re-expansions: +0.75 % on maze512-32-9, +28 % on Boston_0_256 with
-  the benchmark's cost field (δ = 0.05 halves them and costs as much in bucket scanning). Last-in first-out also
-  crosses zero-cost plateaus of equal f depth first (an empty 100×100 zero-cost grid corner to corner: 99
-  expansions). Keys may run at most :data:`N_BUCKETS`·δ ahead of the current bucket; cost grids whose steps
+  and popping are O(1); the price is the re-expansions: +0.75 % on maze512-32-9, +24 % on Boston_0_256 with
+  the benchmark's cost field (a smaller δ has fewer but runs no faster: the wider buckets' depth-first order
+  keeps the memory accesses local). Last-in first-out also crosses zero-cost plateaus of equal f depth first
+  (an empty 100×100 zero-cost grid corner to corner: 99 expansions). Keys may run at most :data:`N_BUCKETS`·δ ahead of the current bucket; cost grids whose steps
   reach further (1 + the largest cost above ~260 × (1 + the smallest)) use the heap search.
 * :func:`weighted_search`, for the others (weighted A*, greedy, Manhattan on 8-connected moves), whose
   expansion order defines them: an indexed 4-ary heap ordered by f alone, with decrease-key, bottom-up
@@ -48,8 +48,10 @@ one process, best of 3 to 7, thread CPU time where the machine was loaded): the 
 of duplicates (1.63 → 1.0 heap entries per expansion) ~80 ns on the maze and −30 % on Boston_0_256; the bucket
 search ~55 ns (maze −33 %, Boston −22 %, random512-40-5 −30 %, same costs to 1e-9); prefetching, while a
 node is expanded, the three neighbour rows of the next node in its bucket −6 to −8 % on the maze (neutral on
-Boston; two nodes ahead: no better). A profile of the heap
-search: ~60 % in the neighbour loop, ~25 % in the sift-down. Tried and dropped: fully unrolled neighbour
+Boston; two nodes ahead: no better); no parent links (the path is read back from g, :func:`trace_back`) −4 %;
+~50 ns in the end. Per query, the grid pass (:func:`prepare_costs`) went from 0.51 to 0.12 ms by vectorising
+it (it was most of a random512 query). A profile of the heap search: ~60 % in the neighbour loop, ~25 % in
+the sift-down. Tried and dropped: fully unrolled neighbour
 relaxation through an inlined helper (2-3× slower as compiled by numba); a float multiply instead of the integer
 division recovering (row, col) (no change); an exactly ordered two-level bucket queue (a small heap for the
 current bucket) replaying the heap search's own push/pop trace (no faster than the 4-ary heap); prefetching the
