@@ -32,8 +32,9 @@ Two searches over these arrays:
   and popping are O(1); the price is the re-expansions: +0.75 % on maze512-32-9, +24 % on Boston_0_256 with
   the benchmark's cost field (a smaller δ has fewer but runs no faster: the wider buckets' depth-first order
   keeps the memory accesses local). Last-in first-out also crosses zero-cost plateaus of equal f depth first
-  (an empty 100×100 zero-cost grid corner to corner: 99 expansions). Keys may run at most :data:`N_BUCKETS`·δ ahead of the current bucket; cost grids whose steps
-  reach further (1 + the largest cost above ~260 × (1 + the smallest)) use the heap search.
+  (an empty 100×100 zero-cost grid corner to corner: 99 expansions). Keys may run at most
+  :data:`N_BUCKETS`·δ ahead of the current bucket; cost grids whose steps reach further (1 + the largest cost
+  above ~260 × (1 + the smallest)) use the heap search.
 * :func:`weighted_search`, for the others (weighted A*, greedy, Manhattan on 8-connected moves), whose
   expansion order defines them: an indexed 4-ary heap ordered by f alone, with decrease-key, bottom-up
   sift-down with a branch-free choice of the smallest child (as :func:`~mjnav.planning._kernels.heap4_sift_down`)
