@@ -183,3 +183,42 @@ def test_plateaus_with_islands_of_cost_match_independent_dijkstra(seed: int) -> 
                 assert p.cost == pytest.approx(ref, rel=1e-12), (alg, cut)
                 check_path(occ, p.cells, start=start, goal=goal, corner_cutting=cut)
                 assert path_cost(p.cells, cost) == pytest.approx(p.cost, rel=1e-12)
+
+
+def test_bucket_search_does_not_cascade_re_expansions_on_a_costmap() -> None:
+    """A planner-like costmap: obstacles, a cost ramp around them, zero cost elsewhere. Sums of the same steps in
+    another order differ in the last bits; without REOPEN_TOLERANCE those "improvements" re-expand nodes in
+    cascades: 2.0× the heap search's expansions on this map (1.4× with it; 3.5× against 1.9× on a 400×400 one).
+    Same optimum as the heap search."""
+    from mjnav.planning import _weighted
+    from mjnav.planning._workspace import get_workspace
+
+    rng = np.random.default_rng(3)
+    occ = np.zeros((300, 300), dtype=bool)
+    for _ in range(100):
+        r, c = rng.integers(0, 290, 2)
+        h, w = rng.integers(3, 15, 2)
+        occ[r : r + h, c : c + w] = True
+    d = distance_transform_edt(~occ)
+    cost = np.where(occ, 0.0, 2.0 * np.clip(1.0 - d / 10.0, 0.0, 1.0))
+    width = occ.shape[1] + 2
+    n = (occ.shape[0] + 2) * width
+    ws = get_workspace(n)
+    rec, pos = ws.cost_grids(n)
+    far = np.argwhere(d > 3)
+    totals = np.zeros(2)
+    for _ in range(8):
+        a, b = far[rng.choice(len(far), 2, replace=False)]
+        sn, tn = (a[0] + 1) * width + a[1] + 1, (b[0] + 1) * width + b[1] + 1
+        _, lo, _ = _weighted.prepare_costs(occ, cost, rec)
+        g_heap, n_heap, _ = _weighted.weighted_search(
+            rec, width, sn, tn, 8, False, 1.0, 1.0, 3, 1.0 + lo, pos, ws.keys, ws.items
+        )
+        _weighted.prepare_costs(occ, cost, rec)
+        delta = _weighted.BUCKET_WIDTH * (1.0 + lo)
+        g_bucket, n_bucket, _ = _weighted.bucket_search(
+            rec, width, sn, tn, 8, False, 1.0 + lo, 3, delta, ws.items, ws.links, ws.heads
+        )
+        assert g_bucket == pytest.approx(g_heap, rel=1e-12)
+        totals += (n_heap, n_bucket)
+    assert totals[1] <= 1.7 * totals[0]
