@@ -31,7 +31,10 @@ Two searches over these arrays:
   admissible), skipping meanwhile every node whose f is not below the goal's g (:data:`GOAL_TOLERANCE`). Pushing
   and popping are O(1); the price is the re-expansions: +0.75 % on maze512-32-9, +24 % on Boston_0_256 with
   the benchmark's cost field (a smaller δ has fewer but runs no faster: the wider buckets' depth-first order
-  keeps the memory accesses local). Last-in first-out also crosses zero-cost plateaus of equal f depth first
+  keeps the memory accesses local). On a planner-like 400×400 costmap (rectangles, a 10-cell cost ramp around
+  them, zero cost elsewhere; 30 queries) it expands 1.9× the heap search's nodes and takes 12 ms against the
+  heap search's 13 ms and the former kernel's 36 ms; δ = 0.02 would take 8.5 ms there but costs the benchmark
+  ~10 %. Last-in first-out also crosses zero-cost plateaus of equal f depth first
   (an empty 100×100 zero-cost grid corner to corner: 99 expansions). Keys may run at most
   :data:`N_BUCKETS`·δ ahead of the current bucket; cost grids whose steps reach further (1 + the largest cost
   above ~260 × (1 + the smallest)) use the heap search.
