@@ -8,7 +8,10 @@ Grid model (shared by every algorithm here and by :func:`path_cost` / :func:`che
   passes is occupied; with ``corner_cutting=True`` only its target cell must be free.
 * Step cost: its length d (cells), or with a ``cost`` grid d·(1 + (cost[a] + cost[b]) / 2) — the extra cost
   is a per-cell traversal penalty per unit length, integrated along the step by the trapezoid rule. ``cost``
-  is (H, W) float, ≥ 0; +inf marks a cell impassable. All heuristics stay admissible with a cost grid.
+  is (H, W) float, ≥ 0; +inf marks a cell impassable. With a cost grid, ``greedy``, ``dijkstra`` and ``astar``
+  run :mod:`mjnav.planning._weighted` and the heuristic is scaled by 1 + min(cost) over the free cells (every
+  step costs at least that per unit length, so it stays admissible and consistent); for ``astar`` with α = β
+  and ``dijkstra`` ``expanded`` counts a node again when a better path reaches it after its expansion.
 """
 
 from __future__ import annotations
