@@ -3,7 +3,8 @@
 rosbags generates one function per message type that calls the function of each nested type and unpacks every
 primitive field with its own ``struct`` call. On the bus that cost is paid per message, in a process that was
 sleeping a moment before, so the amount of Python executed shows up directly in the latency. The functions
-generated here produce exactly rosbags' bytes and objects with less of it:
+generated here produce exactly rosbags' bytes and objects (``byte`` unsigned, as :mod:`mjnav.msgs.codec` presents
+rosbags' too) with less of it:
 
 * nested messages are inlined, so a LaserScan is one function, not three;
 * consecutive primitive fields are packed or unpacked by one ``struct.Struct`` whose format carries the CDR
@@ -36,10 +37,11 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-#: struct format character of each primitive (rosbags' choices: ``byte`` is signed, ``char`` unsigned).
+#: struct format character of each primitive. ``byte`` (the IDL ``octet``) and ``char`` are unsigned, as in ROS 2;
+#: rosbags packs ``byte`` signed, and :mod:`mjnav.msgs.codec` converts on its rosbags path.
 _FORMAT = {
     "bool": "?",
-    "byte": "b",
+    "byte": "B",
     "char": "B",
     "int8": "b",
     "uint8": "B",
@@ -52,10 +54,10 @@ _FORMAT = {
     "float32": "f",
     "float64": "d",
 }
-#: numpy dtype of primitive arrays and sequences (as rosbags decodes them).
+#: numpy dtype of primitive arrays and sequences (as rosbags decodes them, except ``byte``: uint8, not int8).
 _DTYPE = {
     "bool": np.dtype(np.bool_),
-    "byte": np.dtype(np.byte),
+    "byte": np.dtype(np.uint8),
     "char": np.dtype(np.uint8),
     "int8": np.dtype(np.int8),
     "uint8": np.dtype(np.uint8),

@@ -7,8 +7,7 @@ Conventions shared by every kernel here:
   ``(row + 1)·width + (col + 1)`` with ``width = W + 2``.
 * Moves: 4-connected (N, S, W, E) or 8-connected (plus the diagonals, length √2). Without corner cutting a
   diagonal step needs both orthogonal cells it passes to be free; with corner cutting only its target.
-* ``cost``: per-node extra traversal cost (≥ 0, finite) when ``has_cost``; a step a → b of length d costs
-  d·(1 + (cost[a] + cost[b]) / 2). Without it a step costs its length.
+* A step costs its length; searches with a cost grid run in :mod:`mjnav.planning._weighted`.
 * Per-node search state lives in one record per node (:data:`NODE_DTYPE`: cost-so-far ``g``, ``parent``,
   ``tag``), so a node visit touches one cache line. The records come from a reused
   :class:`~mjnav.planning._workspace.Workspace`; ``tag`` encodes the search they belong to (see
@@ -249,8 +248,6 @@ def best_first(
     alpha: float,
     beta: float,
     hcode: int,
-    cost: NDArray[np.float64],
-    has_cost: bool,
     nodes: NDArray[np.void],
     base: int,
     keys: NDArray[np.float64],
@@ -269,8 +266,6 @@ def best_first(
         alpha: weight of g.
         beta: weight of h.
         hcode: heuristic code.
-        cost: padded per-node extra cost (used when ``has_cost``).
-        has_cost: whether ``cost`` applies.
         nodes: :data:`NODE_DTYPE` records (workspace).
         base: tag base of this search.
         keys: heap storage.
@@ -343,10 +338,7 @@ def best_first(
             tag = nodes[nb].tag
             if tag >= closed:
                 continue
-            step = lens[k]
-            if has_cost:
-                step *= 1.0 + 0.5 * (cost[cur] + cost[nb])
-            ng = gcur + step
+            ng = gcur + lens[k]
             if tag < base or ng < nodes[nb].g:
                 if size == keys.shape[0]:
                     return np.inf, expanded, OVERFLOW

@@ -8,7 +8,10 @@ Grid model (shared by every algorithm here and by :func:`path_cost` / :func:`che
   passes is occupied; with ``corner_cutting=True`` only its target cell must be free.
 * Step cost: its length d (cells), or with a ``cost`` grid d·(1 + (cost[a] + cost[b]) / 2) — the extra cost
   is a per-cell traversal penalty per unit length, integrated along the step by the trapezoid rule. ``cost``
-  is (H, W) float, ≥ 0; +inf marks a cell impassable. All heuristics stay admissible with a cost grid.
+  is (H, W) float, ≥ 0; +inf marks a cell impassable. With a cost grid, ``greedy``, ``dijkstra`` and ``astar``
+  run :mod:`mjnav.planning._weighted` and the heuristic is scaled by 1 + min(cost) over the free cells (every
+  step costs at least that per unit length, so it stays admissible and consistent); for ``astar`` with α = β
+  and ``dijkstra`` ``expanded`` counts a node again when a better path reaches it after its expansion.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mjnav.planning import _kernels as kern
+from mjnav.planning import _weighted as weighted
 from mjnav.planning._workspace import get_workspace
 from mjnav.planning.errors import (
     GoalOccupied,
@@ -32,7 +36,7 @@ from mjnav.planning.errors import (
     StartOccupied,
     StartOutsideMap,
 )
-from mjnav.planning.heuristics import heuristic_code
+from mjnav.planning.heuristics import HEURISTIC_CODES, heuristic_code
 from mjnav.planning.jps import grid_layout, jump_point_search, prepare_grid, trace_jump_path
 
 if TYPE_CHECKING:
@@ -121,17 +125,26 @@ def as_cost(cost: ArrayLike | None, shape: tuple[int, int]) -> NDArray[np.float6
     """Validate an optional (H, W) traversal-cost grid (finite ≥ 0 or +inf); raises InvalidInput."""
     if cost is None:
         return None
+    arr = _cost_array(cost, shape)
+    if np.isnan(arr).any():
+        raise InvalidInput(_COST_NAN)
+    if (arr < 0).any():
+        raise InvalidInput(_COST_NEGATIVE)
+    return arr
+
+
+_COST_NAN = "cost contains NaN"
+_COST_NEGATIVE = "cost must be >= 0 (use +inf for impassable cells)"
+
+
+def _cost_array(cost: ArrayLike, shape: tuple[int, int]) -> NDArray[np.float64]:
+    """``cost`` as float64 after the shape and dtype checks of :func:`as_cost` (values not checked)."""
     arr = np.asarray(cost)
     if arr.shape != shape:
         raise InvalidInput(f"cost must have the map shape {shape}; got {arr.shape}")
     if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
         raise InvalidInput(f"cost must be a real array; got dtype {arr.dtype}")
-    arr = arr.astype(np.float64, copy=False)
-    if np.isnan(arr).any():
-        raise InvalidInput("cost contains NaN")
-    if (arr < 0).any():
-        raise InvalidInput("cost must be >= 0 (use +inf for impassable cells)")
-    return arr
+    return arr.astype(np.float64, copy=False)
 
 
 def check_endpoints(blocked: NDArray[np.bool_], start: tuple[int, int], goal: tuple[int, int]) -> None:
@@ -241,6 +254,13 @@ def plan_grid(
         raise InvalidInput(f"connectivity must be 4 or 8; got {connectivity!r}")
     hcode = heuristic_code(heuristic)
     alpha, beta = _as_weights(weights)
+    if cost is not None and algorithm in ("astar", "dijkstra", "greedy"):
+        if algorithm == "dijkstra":
+            alpha, beta = 1.0, 0.0
+        elif algorithm == "greedy":
+            alpha, beta = 0.0, 1.0
+        cost_grid = _cost_array(cost, shape)
+        return _plan_weighted(grid, cost_grid, s, t, str(algorithm), connectivity, corner_cutting, alpha, beta, hcode)
     cost_arr = as_cost(cost, shape)
     blocked_mask = grid if cost_arr is None else (grid | np.isinf(cost_arr))
     check_endpoints(blocked_mask, s, t)
@@ -300,11 +320,9 @@ def plan_grid(
         alpha, beta = 1.0, 0.0
     elif algorithm == "greedy":
         alpha, beta = 0.0, 1.0
-    has_cost = cost_arr is not None
-    cost_flat = np.zeros(1) if cost_arr is None else _pad_cost(cost_arr).ravel()
     while True:
         g_goal, expanded, status = kern.best_first(
-            flat, width, sn, tn, n_moves, corner_cutting, alpha, beta, hcode, cost_flat, has_cost,
+            flat, width, sn, tn, n_moves, corner_cutting, alpha, beta, hcode,
             ws.nodes, ws.begin(), ws.keys, ws.subs, ws.items,
         )  # fmt: skip
         if status != kern.OVERFLOW:
@@ -344,10 +362,89 @@ def _plan_jps(
     return GridPlan(trace_jump_path(ws.nodes, stride, sn, tn), float(g_goal), int(expanded), "jps")
 
 
-def _pad_cost(cost: NDArray[np.float64]) -> NDArray[np.float64]:
-    out = np.zeros((cost.shape[0] + 2, cost.shape[1] + 2))
-    out[1:-1, 1:-1] = np.where(np.isinf(cost), 0.0, cost)
-    return out
+def _plan_weighted(
+    grid: NDArray[np.bool_],
+    cost: NDArray[np.float64],
+    s: tuple[int, int],
+    t: tuple[int, int],
+    algorithm: str,
+    connectivity: int,
+    corner_cutting: bool,
+    alpha: float,
+    beta: float,
+    hcode: int,
+) -> GridPlan:
+    """A*, Dijkstra or greedy with a cost grid (:mod:`mjnav.planning._weighted`); checks the cost values and cells.
+
+    Args:
+        grid: (H, W) bool occupancy.
+        cost: (H, W) float64 extra cost per unit length (shape and dtype already checked).
+        s: start (row, col).
+        t: goal (row, col).
+        algorithm: the name reported in the plan.
+        connectivity: 4 or 8.
+        corner_cutting: allow diagonal steps past occupied orthogonal cells.
+        alpha: weight of g.
+        beta: weight of h.
+        hcode: heuristic code.
+    """
+    h, w = int(grid.shape[0]), int(grid.shape[1])
+    width = w + 2
+    n_nodes = (h + 2) * width
+    if n_nodes >= 2**31:
+        raise InvalidInput(f"map of {h}×{w} cells is too large (node ids are int32)")
+    ws = get_workspace(n_nodes)
+    rec, pos = ws.cost_grids(n_nodes)
+    grid = np.ascontiguousarray(grid)
+    cost = np.ascontiguousarray(cost)
+    verdict, lowest, highest = weighted.prepare_costs(grid, cost, rec)
+    if verdict == weighted.COSTS_NAN:
+        raise InvalidInput(_COST_NAN)
+    if verdict == weighted.COSTS_NEGATIVE:
+        raise InvalidInput(_COST_NEGATIVE)
+    if not (0 <= s[0] < h and 0 <= s[1] < w):
+        raise StartOutsideMap(s, (h, w))
+    if not (0 <= t[0] < h and 0 <= t[1] < w):
+        raise GoalOutsideMap(t, (h, w))
+    sn = (s[0] + 1) * width + s[1] + 1
+    tn = (t[0] + 1) * width + t[1] + 1
+    if rec[2 * sn] == -np.inf:  # occupied or of infinite cost
+        raise StartOccupied(s)
+    if rec[2 * tn] == -np.inf:
+        raise GoalOccupied(t)
+    if s == t:
+        return GridPlan(np.array([s], dtype=np.int64), 0.0, 0, algorithm)
+    hscale = 1.0 + lowest
+    # Optimal modes with a consistent heuristic run the bucket search; the others (weighted A*, greedy, Manhattan
+    # on 8-connected moves) the heap search, whose expansion order defines them. Keys run at most a step's cost
+    # plus the heuristic's change ahead of the current bucket: the bucket array must cover that.
+    hweight = 0.0 if beta == 0.0 else (hscale if alpha == beta else -1.0)
+    consistent = beta == 0.0 or hcode != HEURISTIC_CODES["manhattan"] or connectivity == 4
+    delta = weighted.BUCKET_WIDTH * hscale
+    reach = SQRT2 * (1.0 + highest + max(hweight, 0.0))
+    use_buckets = hweight >= 0.0 and consistent and reach < 0.9 * weighted.N_BUCKETS * delta
+    while True:
+        if use_buckets:
+            g_goal, expanded, status = weighted.bucket_search(
+                rec, width, sn, tn, connectivity, corner_cutting, hweight, hcode, delta,
+                ws.items, ws.links, ws.heads,
+            )  # fmt: skip
+        else:
+            g_goal, expanded, status = weighted.weighted_search(
+                rec, width, sn, tn, connectivity, corner_cutting, alpha, beta, hcode, hscale,
+                pos, ws.keys, ws.items,
+            )  # fmt: skip
+        if status == weighted.OUT_OF_WINDOW:
+            use_buckets = False
+        elif status == kern.OVERFLOW:
+            ws.grow_heap()
+        else:
+            break
+        weighted.prepare_costs(grid, cost, rec)
+    if status != kern.FOUND:
+        raise NoPathFound(f"no path from {s} to {t} ({algorithm} expanded {expanded} nodes)")
+    cells = weighted.trace_back(rec, width, sn, tn, connectivity, corner_cutting)
+    return GridPlan(cells, float(g_goal), int(expanded), algorithm)
 
 
 # ---------------------------------------------------------------------------------------------------------------

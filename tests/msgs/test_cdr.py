@@ -16,12 +16,12 @@ from rosbags.interfaces import Nodetype
 
 from mjnav.msgs import MessageError, decode, encode, from_dict, to_dict, typestore
 from mjnav.msgs.cdr import compiled
-from mjnav.msgs.codec import encoder
+from mjnav.msgs.codec import encoder, rosbags_decoder, rosbags_encoder
 
 STORE = typestore()
 ALL_TYPES = sorted(STORE.types)
 INT_BOUNDS = {
-    "byte": (-128, 127),  # rosbags packs byte as signed
+    "byte": (0, 255),  # an unsigned octet, as in ROS 2
     "char": (0, 255),
     "int8": (-128, 127),
     "uint8": (0, 255),
@@ -34,7 +34,7 @@ INT_BOUNDS = {
 }
 DTYPES = {
     "bool": np.bool_,
-    "byte": np.byte,
+    "byte": np.uint8,
     "char": np.uint8,
     "float32": np.float32,
     "float64": np.float64,
@@ -102,10 +102,10 @@ def test_compiled_codec_matches_rosbags_on_random_messages(typename: str) -> Non
     rng = np.random.default_rng(7)
     for _ in range(12):
         msg = random_message(typename, rng)
-        reference = bytes(STORE.serialize_cdr(msg, typename))
+        reference = rosbags_encoder(typename)(msg)
         assert codec.encode(msg) == reference, codec.source
         ours = codec.decode(reference)
-        assert _same(ours, STORE.deserialize_cdr(reference, typename)), codec.source
+        assert _same(ours, rosbags_decoder(typename)(reference)), codec.source
         assert _same(ours, msg)
         assert _same(decode(memoryview(reference), typename), msg)  # what Zenoh hands over may be a view
 
@@ -188,3 +188,73 @@ def test_generated_finite_check_agrees_with_the_field_by_field_walk(typename: st
         assert not all_finite(typename)(msg), path
         assert _first_nonfinite(msg) is not None, path
         setattr(owner, path[-1], saved)
+
+
+#: Types with a byte field of their own (scalar or array); DiagnosticArray holds them through DiagnosticStatus.
+BYTE_TYPES = [t for t in ALL_TYPES if "'byte'" in repr(STORE.fielddefs[t][1])]
+
+
+def test_byte_is_an_unsigned_octet_on_every_path() -> None:
+    """ROS 2 ``byte`` is the IDL ``octet``, 0..255: a DiagnosticStatus of level 200 builds, encodes (compiled and
+    rosbags paths, same octet 0xC8), decodes to 200 on both paths and reads 200 in an independent decoder."""
+    from mcap_ros2._dynamic import generate_dynamic
+
+    from mjnav.msgs import message_definition
+
+    typename = "diagnostic_msgs/msg/DiagnosticStatus"
+    msg = from_dict(typename, {"level": 200, "name": "motor", "message": "hot"})
+    data = encode(msg)
+    assert data[4] == 200
+    assert rosbags_encoder(typename)(msg) == data
+    assert decode(data, typename).level == 200
+    assert rosbags_decoder(typename)(data).level == 200
+    theirs = generate_dynamic(typename, message_definition(typename))[typename](data)
+    assert theirs.level == 200
+    big = bytes(STORE.serialize_cdr(from_dict(typename, {"level": 2}), typename, little_endian=False))
+    assert decode(big, typename).level == 2  # big-endian payloads go through rosbags
+    for bad in (256, -1):
+        with pytest.raises(MessageError, match="byte"):
+            from_dict(typename, {"level": bad})
+        msg.level = bad
+        with pytest.raises(MessageError):
+            encode(msg)
+        with pytest.raises(MessageError, match=r"outside the byte range"):
+            rosbags_encoder(typename)(msg)
+
+
+def test_byte_sequences_and_nested_bytes_round_trip_unsigned() -> None:
+    arr = from_dict("std_msgs/msg/ByteMultiArray", {"data": [0, 1, 127, 128, 200, 255]})
+    assert arr.data.dtype == np.uint8
+    data = encode(arr)
+    assert data.endswith(bytes([0, 1, 127, 128, 200, 255]))
+    for back in (decode(data, "std_msgs/msg/ByteMultiArray"), rosbags_decoder("std_msgs/msg/ByteMultiArray")(data)):
+        assert back.data.dtype == np.uint8
+        assert back.data.tolist() == [0, 1, 127, 128, 200, 255]
+    # A message sequence holding bytes, through the rosbags path (a list where an array is declared is left to it).
+    array = from_dict("diagnostic_msgs/msg/DiagnosticArray", {"status": [{"level": 255}, {"level": 3}, {"level": 128}]})
+    data = encode(array)
+    assert rosbags_encoder("diagnostic_msgs/msg/DiagnosticArray")(array) == data
+    via_rosbags = rosbags_decoder("diagnostic_msgs/msg/DiagnosticArray")(data)
+    assert [s.level for s in via_rosbags.status] == [255, 3, 128]
+    assert [s.level for s in decode(data, "diagnostic_msgs/msg/DiagnosticArray").status] == [255, 3, 128]
+    assert [s.level for s in array.status] == [255, 3, 128]  # the caller's message is not modified
+
+
+@pytest.mark.parametrize("typename", BYTE_TYPES)
+def test_every_type_with_bytes_encodes_whatever_from_dict_builds(typename: str) -> None:
+    """Any message that builds must encode: the extreme byte values on both paths, the same bytes."""
+    for value in (0, 255):
+        msg = random_message(typename, np.random.default_rng(value))
+        _set_bytes(msg, value)
+        data = encode(msg)
+        assert rosbags_encoder(typename)(msg) == data
+        assert _same(decode(data, typename), msg)
+        assert _same(rosbags_decoder(typename)(data), msg)
+
+
+def _set_bytes(msg: Any, value: int) -> None:
+    for name, (nodetype, desc) in STORE.fielddefs[msg.__msgtype__][1]:
+        if nodetype == Nodetype.BASE and desc[0] == "byte":
+            setattr(msg, name, value)
+        elif nodetype in (Nodetype.ARRAY, Nodetype.SEQUENCE) and desc[0] == (Nodetype.BASE, ("byte", 0)):
+            getattr(msg, name)[:] = value

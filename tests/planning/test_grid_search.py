@@ -358,9 +358,10 @@ def test_workspace_reuse_and_heap_growth() -> None:
         ws.keys = ws.keys[:2]  # force overflows: the kernels must report them and the caller regrow
         ws.subs = ws.subs[:2]
         ws.items = ws.items[:2]
-        for alg in ("astar", "jps", "dfs"):
+        for alg in ("astar", "jps", "dfs", "astar with cost"):
+            cost = np.zeros(occ.shape) if alg == "astar with cost" else None
             try:
-                p = plan_grid(occ, start, goal, algorithm=alg)
+                p = plan_grid(occ, start, goal, algorithm=alg.split()[0], cost=cost)
             except NoPathFound:
                 assert not math.isfinite(ref)
                 continue
