@@ -21,8 +21,8 @@ from mjnav.bus.config import tls_files
 from mjnav.msgs import from_dict, msg_class, ros
 from mjnav.msgs.topics import OPERATOR
 from mjnav.runtime.mission import MissionClient
-from mjnav.sim.worlds import world_info
 from mjnav.runtime.stack import load_stack, services_dir
+from mjnav.sim.worlds import world_info
 from tests.services.test_navigation import RTF, SERVICES, up_process
 
 #: Settings that make every service declare everything it can (the warehouse has moving obstacles) and start no
