@@ -11,11 +11,25 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import re
 import sys
 from collections.abc import Sequence
 
 import mjnav
 import mjnav.commands
+
+#: Arguments that are numbers or coordinate lists, negative ones included (``-3``, ``-3.5``, ``-3,2``, ``-1e-3,-2``):
+#: values, never options. argparse alone takes ``--goal -3,2`` for an option and fails with "expected one argument".
+_NUMBERS = re.compile(r"^-\.?\d[\d.eE+-]*(,\s*-?\.?\d[\d.eE+-]*)*$")
+
+
+def _accept_negative_numbers(parser: argparse.ArgumentParser) -> None:
+    """Let ``parser`` and all its sub-parsers take negative numbers and coordinates as values."""
+    parser._negative_number_matcher = _NUMBERS
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _accept_negative_numbers(child)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -26,7 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
             "MuJoCo mobile-robot navigation stack over Zenoh. Services exchange ROS 2 messages (CDR) on "
             "keys <namespace>/<topic>, e.g. robot0/scan; any Zenoh or ROS 2 client can join."
         ),
-        epilog="Run 'mjnav COMMAND --help' for the options of one command.",
+        epilog="Run 'mjnav COMMAND --help' for the options of one command. Numbers and coordinates may be "
+        "negative everywhere: --goal -3,2, --yaw -90, mjnav goal -1.5 2.",
     )
     parser.add_argument("--version", action="version", version=f"mjnav {mjnav.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -35,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
             continue  # shared helpers, not commands
         module = importlib.import_module(f"mjnav.commands.{info.name}")
         module.register(sub)
+    _accept_negative_numbers(parser)
     return parser
 
 

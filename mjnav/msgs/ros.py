@@ -115,6 +115,13 @@ def pose2d(pose: Any) -> Pose2D:
     return Pose2D(pose.position.x, pose.position.y, quaternion_to_yaw(q.x, q.y, q.z, q.w))
 
 
+def has_orientation(pose: Any) -> bool:
+    """False for a geometry_msgs/Pose whose quaternion is all zeros: the orientation was left out (a goal with any
+    final heading)."""
+    q = pose.orientation
+    return not (q.x == q.y == q.z == q.w == 0.0)
+
+
 def twist(v_mps: float, omega_radps: float) -> Any:
     """geometry_msgs/Twist with forward speed ``v_mps`` and yaw rate ``omega_radps``."""
     vec = _Vector3

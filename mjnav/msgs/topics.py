@@ -41,6 +41,8 @@ class Topic:
         per_service: the key carries the service name: ``<namespace>/<name>/<service>``.
         express: sent at once rather than batched (the clock and lockstep reports: each closes a lockstep round,
             and sending it flushes what its publisher batched before it).
+        subscribers: the services that must receive every message of an event topic: a publisher asking for
+            delivery receipts (``mjnav pub``, :meth:`mjnav.bus.Bus.put_confirmed`) waits for one from each.
     """
 
     name: str
@@ -51,6 +53,7 @@ class Topic:
     description: str
     per_service: bool = False
     express: bool = False
+    subscribers: tuple[str, ...] = ()
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this topic in ``namespace``; per-service topics need ``service``
@@ -156,8 +159,32 @@ TOPICS: dict[str, Topic] = {
         ),
         Topic("map", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "2 Hz", "Log-odds occupancy map, frame `map`"),
         Topic("costmap", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "2 Hz", "Inflated costmap, 0–100"),
-        Topic("goal", "geometry_msgs/msg/PoseStamped", _E, "user", "on request", "Navigation goal in `map`"),
-        Topic("cancel", "std_msgs/msg/Empty", _E, "user", "on request", "Cancel the current goal"),
+        Topic(
+            "cmd_vel_teleop",
+            "geometry_msgs/msg/Twist",
+            _S,
+            "user (`mjnav teleop`)",
+            "10 Hz while driving",
+            "Teleoperation command; overrides `cmd_vel` while fresh (the sim's mux)",
+        ),
+        Topic(
+            "goal",
+            "geometry_msgs/msg/PoseStamped",
+            _E,
+            "user",
+            "on request",
+            "Navigation goal in `map` (unconfirmed; `navigate` answers with an id)",
+            subscribers=("planner",),
+        ),
+        Topic(
+            "cancel",
+            "std_msgs/msg/Empty",
+            _E,
+            "user",
+            "on request",
+            "Cancel the current goal",
+            subscribers=("planner",),
+        ),
         Topic("plan", "nav_msgs/msg/Path", _S, "planner", "on change", "Raw grid plan in `map`"),
         Topic("path", "nav_msgs/msg/Path", _S, "smoother", "on change", "Smoothed path the controller follows"),
         Topic(
@@ -167,6 +194,15 @@ TOPICS: dict[str, Topic] = {
             "planner, controller",
             "on change",
             "Goal lifecycle with a typed failure reason",
+        ),
+        Topic(
+            "receipt",
+            "mjnav_msgs/msg/Receipt",
+            _E,
+            "event subscribers",
+            "on request",
+            "Delivery receipt of an event message that asked for one (`mjnav pub`)",
+            per_service=True,
         ),
         Topic(
             "status",
@@ -206,7 +242,16 @@ ENDPOINTS: dict[str, Endpoint] = {
             "std_msgs/msg/String",
             "std_msgs/msg/String",
             "mapper",
-            'Save the map as PGM + YAML; request: .yaml path (empty = configured); reply: JSON {"yaml": path}',
+            "Save the map as PGM + YAML; request: .yaml path relative to the mapper's `maps_dir` (default `maps/`; "
+            'paths outside it are refused; empty = the configured `save_path`); reply: JSON {"yaml": path}',
+        ),
+        Endpoint(
+            "navigate",
+            "mjnav_msgs/msg/NavigateRequest",
+            "mjnav_msgs/msg/NavigateResponse",
+            "planner",
+            "Drive to a pose (Nav2's NavigateToPose): replies accepted with a goal id, or rejected with a GoalStatus "
+            "error code; feedback and result follow on `goal_status`",
         ),
     )
 }
