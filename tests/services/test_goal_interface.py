@@ -1,8 +1,10 @@
 """The goal interface without processes: the planner's ``navigate`` endpoint (accept with an id, typed rejections,
-none lost in a burst, kept across a restart) and delivery receipts on the event topics."""
+none lost in a burst, kept across a restart), delivery receipts on the event topics, and the controller's final
+turn to the goal's yaw."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 
@@ -12,6 +14,7 @@ import pytest
 from mjnav.bus import Bus, NotDelivered, wait_until
 from mjnav.geometry import Pose2D
 from mjnav.msgs import from_dict, msg_class, ros
+from mjnav.services.controller import ControllerService, goal_yaw_error
 from mjnav.services.planner import PlannerService
 from tests.services.harness import Harness
 
@@ -127,3 +130,63 @@ def test_an_event_nobody_named_receives_fails_loudly(peer: Peer) -> None:
     with pytest.raises(NotDelivered, match="planner 0/1") as err:
         sender.put_confirmed("goal", [ros.pose_stamped(0.0, "map", Pose2D(1.0, 1.0, 0.0))], timeout_s=1.0)
     assert err.value.missing == ["planner"]
+
+
+def _following(t: float, goal_id: int, goal: object) -> object:
+    return STATUS(header=ros.header(t, "map"), goal_id=goal_id, state=STATUS.STATE_FOLLOWING, error_code=0,
+                  error_text="", goal=goal)  # fmt: skip
+
+
+def _clear_scan(t: float) -> object:
+    n = 90
+    return ros.laser_scan(
+        t, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / n, scan_time_s=0.1,
+        range_min_m=0.05, range_max_m=12.0, ranges_m=np.full(n, np.inf),
+    )  # fmt: skip
+
+
+def _at(h: Harness, t: float, pose: Pose2D, expect: dict[str, int]) -> object:
+    """Step the controller at ``t`` with the robot at ``pose``; returns the newest cmd_vel."""
+    h.send("scan", _clear_scan(t))
+    h.send("ground_truth", ros.pose_stamped(t, "map", pose))
+    h.step(t, expect)
+    return h.received["cmd_vel"][-1]
+
+
+def test_the_controller_turns_in_place_to_the_goal_yaw_then_reports_reached(peer: Peer) -> None:
+    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), goal_tolerance_m=0.1,
+                yaw_goal_tolerance_rad=0.05)  # fmt: skip
+    line = np.c_[np.linspace(0.0, 2.0, 21), np.zeros(21)]
+    goal = ros.pose_stamped(0.0, "map", Pose2D(2.0, 0.0, math.radians(120.0)))
+    h.send("goal_status", _following(1.0, 1, goal))
+    h.send("path", ros.path_msg(1.0, "map", line))
+    assert _at(h, 1.0, Pose2D(1.0, 0.0, 0.0), {"cmd_vel": 1}).linear.x > 0  # driving along the path
+    # At the position (within 0.1 m): turn in place, the shorter way (left), not reached yet.
+    cmd = _at(h, 1.1, Pose2D(1.95, 0.02, 0.0), {"cmd_vel": 2})
+    assert cmd.linear.x == 0.0 and cmd.angular.z == pytest.approx(1.0)  # clamped to rotate_max_radps
+    # Turning drifts the centre a little beyond the xy tolerance: the goal stays latched, still only turning.
+    cmd = _at(h, 1.2, Pose2D(1.88, 0.03, math.radians(110.0)), {"cmd_vel": 3})
+    assert cmd.linear.x == 0.0 and cmd.angular.z == pytest.approx(1.5 * math.radians(10.0), rel=1e-6)
+    cmd = _at(h, 1.3, Pose2D(1.88, 0.03, math.radians(115.0)), {"cmd_vel": 4})
+    assert cmd.angular.z == pytest.approx(0.2)  # rotate_min_radps near the end
+    assert not any(s.state == STATUS.STATE_REACHED for s in h.received["goal_status"])
+    # Within 0.05 rad (2.9°) of 120°: stop, reached.
+    cmd = _at(h, 1.4, Pose2D(1.88, 0.03, math.radians(122.0)), {"cmd_vel": 5, "goal_status": 2})
+    assert (cmd.linear.x, cmd.angular.z) == (0.0, 0.0)
+    assert (h.received["goal_status"][-1].goal_id, h.received["goal_status"][-1].state) == (1, STATUS.STATE_REACHED)
+    # Across ±180°: goal yaw 170°, heading -170° → turn right by 20°, not left by 340°.
+    assert goal_yaw_error(ros.pose_msg(Pose2D(0, 0, math.radians(170.0))), math.radians(-170.0)) == pytest.approx(
+        math.radians(-20.0)
+    )
+
+
+def test_a_goal_without_orientation_is_reached_with_any_heading(peer: Peer) -> None:
+    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"))
+    line = np.c_[np.linspace(0.0, 2.0, 21), np.zeros(21)]
+    goal = from_dict("geometry_msgs/msg/PoseStamped", {"header": {"frame_id": "map"},
+                     "pose": {"position": {"x": 2.0}, "orientation": {"w": 0.0}}})  # fmt: skip
+    h.send("goal_status", _following(1.0, 1, goal))
+    h.send("path", ros.path_msg(1.0, "map", line))
+    cmd = _at(h, 1.0, Pose2D(1.95, 0.0, 2.5), {"cmd_vel": 1, "goal_status": 2})
+    assert (cmd.linear.x, cmd.angular.z) == (0.0, 0.0)
+    assert h.received["goal_status"][-1].state == STATUS.STATE_REACHED
