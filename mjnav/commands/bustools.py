@@ -35,7 +35,8 @@ def register(sub: Any) -> None:
         "echo",
         help="print decoded messages of a key",
         description="Subscribe to KEY (e.g. robot0/odom, or robot0/status/* for every service) and print each "
-        "decoded message as a JSON line (or YAML). Payloads that fail to decode or validate are reported on stderr. "
+        "decoded message as a JSON line (or YAML); enumerated fields get their name beside them (state_name: "
+        "REACHED, error_code_name: ERROR_NO_PATH). Payloads that fail to decode or validate are reported on stderr. "
         + _TOPICS_EPILOG,
     )
     echo.add_argument("key", help="Zenoh key, e.g. robot0/scan")
@@ -94,6 +95,25 @@ def _resolve(key: str) -> tuple[str, Any, str | None]:
     namespace, row = resolve_key(key)
     service = key.rsplit("/", 1)[1] if row.per_service else None
     return namespace, row, service
+
+
+#: Integer fields whose value is one of the message type's constants of this prefix (GoalStatus, ServiceStatus).
+_NAMED_FIELDS = {"state": "STATE_", "error_code": "ERROR_"}
+
+
+def with_constant_names(msg: Any, data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` (the dict of ``msg``) with ``<field>_name`` beside each enumerated integer field: ``"state": 4,
+    "state_name": "REACHED"``, ``"error_code": 2, "error_code_name": "ERROR_GOAL_OCCUPIED"``."""
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        out[key] = value
+        prefix = _NAMED_FIELDS.get(key)
+        if prefix is None or not isinstance(value, int):
+            continue
+        names = [n for n in dir(type(msg)) if n.startswith(prefix) and getattr(type(msg), n) == value]
+        if names:
+            out[f"{key}_name"] = names[0][len(prefix) :] if prefix == "STATE_" else names[0]
+    return out
 
 
 def run_topics(args: argparse.Namespace) -> int:
@@ -185,7 +205,7 @@ def run_echo(args: argparse.Namespace) -> int:
         with lock:
             if done.is_set():
                 return
-            data = to_dict(msg)
+            data = with_constant_names(msg, to_dict(msg))
             try:
                 if args.format == "json":
                     sys.stdout.write(jsonsafe.dumps(data) + "\n")

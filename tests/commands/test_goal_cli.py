@@ -82,3 +82,31 @@ def test_goal_rejects_bad_arguments() -> None:
     for argv in (["goal"], ["goal", "1", "2", "--waypoints", "w.txt"], ["goal", "1", "nan"]):
         proc = _mjnav(*argv, "--connect", "tcp/127.0.0.1:1")
         assert proc.returncode == 2, proc.stderr
+
+
+def test_a_closed_pipe_ends_a_command_quietly(tmp_path: Path) -> None:
+    grid = tmp_path / "open.map"
+    grid.write_text("type octile\nheight 20\nwidth 20\nmap\n" + ("." * 20 + "\n") * 20)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mjnav", "plan", "--map", str(grid), "--start", "0,0", "--goal", "19,19"],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    assert proc.stdout is not None
+    proc.stdout.close()  # the reader is gone before the first line (`| head -0`)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0 and "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_echo_names_states_and_error_codes() -> None:
+    from mjnav.commands.bustools import with_constant_names
+    from mjnav.geometry import Pose2D
+    from mjnav.msgs import msg_class, ros, to_dict
+
+    status = msg_class("mjnav_msgs/msg/GoalStatus")
+    goal = ros.pose_stamped(0.0, "map", Pose2D())
+    msg = status(header=ros.header(1.0, "map"), goal_id=3, state=status.STATE_FAILED,
+                 error_code=status.ERROR_NO_PATH, error_text="walled in", goal=goal)  # fmt: skip
+    data = with_constant_names(msg, to_dict(msg))
+    assert (data["state"], data["state_name"]) == (5, "FAILED")
+    assert (data["error_code"], data["error_code_name"]) == (4, "ERROR_NO_PATH")
+    assert list(data)[:6] == ["header", "goal_id", "state", "state_name", "error_code", "error_code_name"]
