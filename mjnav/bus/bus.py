@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+import uuid
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -50,6 +51,23 @@ class NoReply(TimeoutError):
 
 class BusUnavailable(ConnectionError):
     """The Zenoh session could not be opened: no router answered in time, or a listen port is taken."""
+
+
+class NotDelivered(TimeoutError):
+    """An event message was not confirmed by every subscriber the topic table names (see
+    :meth:`Bus.put_confirmed`).
+
+    Attributes:
+        missing: the services whose receipt did not arrive.
+    """
+
+    def __init__(self, message: str, missing: list[str]) -> None:
+        super().__init__(message)
+        self.missing = missing
+
+
+#: Zenoh attachment prefix of an event sample that asks its subscribers for a delivery receipt.
+RECEIPT_REQUEST = b"receipt="
 
 
 def cdr_encoding(msgtype: str) -> zenoh.Encoding:
@@ -117,16 +135,20 @@ class Publisher:
         self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos(row))
         self._encode = codec.encoder(row.msgtype)
 
-    def put(self, msg: Any) -> None:
-        """Encode ``msg`` (must be of the topic's type) and publish it."""
-        self.put_bytes(self._encode(msg))
+    def put(self, msg: Any, *, receipt_id: str | None = None) -> None:
+        """Encode ``msg`` (must be of the topic's type) and publish it; with ``receipt_id`` every event subscriber
+        answers on ``receipt/<service>`` (see :meth:`Bus.put_confirmed`)."""
+        self.put_bytes(self._encode(msg), receipt_id=receipt_id)
 
-    def put_bytes(self, payload: bytes) -> None:
+    def put_bytes(self, payload: bytes, *, receipt_id: str | None = None) -> None:
         """Publish an already-encoded CDR payload (nothing, once the bus is closing: a callback still running
         while :meth:`Bus.close` undeclares everything must not fail on it)."""
         if self._bus.closing:
             return
-        self._pub.put(payload)
+        if receipt_id is None:
+            self._pub.put(payload)
+        else:
+            self._pub.put(payload, attachment=RECEIPT_REQUEST + receipt_id.encode())
         self._bus._count_published()
 
     def wait_for_subscribers(self, timeout_s: float) -> bool:
@@ -203,8 +225,11 @@ class Subscription:
             return
         if self._bus.staged and not self._immediate:
             self._bus._stage(self, key, msg)
-            return
-        self._deliver(key, msg)
+        else:
+            self._deliver(key, msg)
+        if self.topic.kind is Kind.EVENT and sample.attachment is not None:
+            # Queued for the service (or handed to its callback): confirm delivery when the publisher asked.
+            self._bus._send_receipt(key, sample.attachment.to_bytes())
 
     def _deliver(self, key: str, msg: Any) -> None:
         with self._cond:
@@ -301,7 +326,10 @@ class Bus:
         self.staged = False
         #: Set by :meth:`close`: samples still arriving are ignored and publishing does nothing.
         self.closing = False
-        self._staging: list[tuple[Subscription, str, Any]] = []
+        self._staging: list[tuple[Subscription | None, str, Any]] = []
+        #: The service this bus belongs to (set by :class:`mjnav.runtime.Service`): it signs delivery receipts.
+        self.owner: str | None = None
+        self._receipt_pub: Publisher | None = None
         self.namespace = namespace
         self.stats = BusStats()
         self._owns_session = owns_session
@@ -363,6 +391,31 @@ class Bus:
         with self._lock:
             self._staging.append((sub, key, msg))
 
+    def _send_receipt(self, key: str, attachment: bytes) -> None:
+        """Answer an event sample that asked for a receipt (only buses that belong to a service sign them)."""
+        if self.owner is None or not attachment.startswith(RECEIPT_REQUEST):
+            return
+        with self._lock:
+            if self._receipt_pub is None:
+                self._receipt_pub = self.publisher("receipt", service=self.owner)
+            pub = self._receipt_pub
+        request_id = attachment[len(RECEIPT_REQUEST) :].decode(errors="replace")
+        fields = {"service": self.owner, "key": key, "request_id": request_id}
+        pub.put(codec.from_dict("mjnav_msgs/msg/Receipt", fields))
+
+    def defer(self, action: Callable[[], None]) -> None:
+        """Run ``action`` as if it were a message arriving now: at the next :meth:`commit` when the bus is
+        :attr:`staged` (in order with the messages staged around it), at once otherwise.
+
+        For inputs that do not come through a subscription — a request on an endpoint — so that a sim-time service
+        sees them at a step boundary, in the order they arrived relative to its topics.
+        """
+        with self._lock:
+            if self.staged:
+                self._staging.append((None, "", action))
+                return
+        action()
+
     def commit(self) -> None:
         """Deliver every staged message, in arrival order, to its subscription (and callback).
 
@@ -374,7 +427,13 @@ class Bus:
         with self._lock:
             staged, self._staging = self._staging, []
         for sub, key, msg in staged:
-            sub._deliver(key, msg)
+            if sub is None:
+                try:
+                    msg()  # a deferred action (see defer)
+                except Exception:
+                    log.exception("deferred action failed")
+            else:
+                sub._deliver(key, msg)
 
     # ----------------------------------------------------------------------------------------- pub/sub by name
 
@@ -409,6 +468,72 @@ class Bus:
         sub = Subscription(self, row, row.key(self.namespace, service), callback, immediate)
         self._declared.append(sub)
         return sub
+
+    def put_confirmed(
+        self, name: str, msgs: list[Any], *, timeout_s: float = 5.0, period_s: float = 0.0
+    ) -> dict[str, int]:
+        """Publish event messages on topic ``name`` and wait until each subscriber the topic table names
+        (``Topic.subscribers``) confirmed every one of them with a receipt.
+
+        Args:
+            name: an event topic of the table.
+            msgs: the messages, sent in order.
+            timeout_s: wall seconds to wait for the subscribers to match, and then for the last receipts.
+            period_s: wall seconds between two messages (pacing, 0 = back to back).
+
+        Returns:
+            Receipts received per service (every named subscriber has ``len(msgs)``; other subscribers that
+            answered, e.g. the viewer, are counted too).
+
+        Raises:
+            NotDelivered: a named subscriber did not confirm every message within ``timeout_s`` (it is not
+                running, or it rejected the payload).
+            ValueError: ``name`` is not an event topic or names no subscribers.
+        """
+        row = topic(name)
+        if row.kind is not Kind.EVENT or not row.subscribers:
+            raise ValueError(f"topic {name!r} is not an event topic with named subscribers")
+        tag = uuid.uuid4().hex
+        got: dict[str, set[str]] = {}
+        cond = threading.Condition()
+
+        def on_receipt(msg: Any) -> None:
+            if msg.request_id.startswith(tag):
+                with cond:
+                    got.setdefault(msg.service, set()).add(msg.request_id)
+                    cond.notify_all()
+
+        receipts = self.subscribe("receipt", service="*", callback=on_receipt)
+        pub = self.publisher(name)
+        try:
+            pub.wait_for_subscribers(timeout_s)
+            start = time.monotonic()
+            for i, msg in enumerate(msgs):
+                if i and period_s > 0:
+                    time.sleep(max(0.0, start + i * period_s - time.monotonic()))  # pacing, not synchronisation
+                pub.put(msg, receipt_id=f"{tag}-{i}")
+            deadline = time.monotonic() + timeout_s
+
+            def missing() -> list[str]:
+                return [s for s in row.subscribers if len(got.get(s, ())) < len(msgs)]
+
+            with cond:
+                while missing():
+                    remaining = deadline - time.monotonic()
+                    if remaining <= 0:
+                        lost = missing()
+                        counts = ", ".join(f"{s} {len(got.get(s, ()))}/{len(msgs)}" for s in lost)
+                        raise NotDelivered(
+                            f"{pub.key}: no receipt within {timeout_s} s from {counts} "
+                            f"(is it running? `mjnav health {' '.join(lost)}`)",
+                            lost,
+                        )
+                    cond.wait(remaining)
+                return {service: len(ids) for service, ids in got.items()}
+        finally:
+            for entity in (receipts, pub):
+                self._declared.remove(entity)
+                entity.close()
 
     # ------------------------------------------------------------------------------------------- request/reply
 

@@ -320,7 +320,8 @@ def to_dict(msg: Any) -> Any:
 
 
 def from_dict(typename: str, data: Mapping[str, Any] | None = None) -> Any:
-    """Build a message of ``typename`` from a (partial) dict; missing fields take ROS defaults (0, "", []).
+    """Build a message of ``typename`` from a (partial) dict; missing fields take ROS defaults (0, "", [];
+    a ``geometry_msgs/Quaternion`` given without ``w`` gets w = 1, the identity, as in ROS 2).
 
     Example: ``from_dict("geometry_msgs/msg/Twist", {"linear": {"x": 0.25}})``.
 
@@ -339,6 +340,8 @@ def _build_named(typename: str, data: Any, where: str) -> Any:
     unknown = sorted(set(data) - set(names))
     if unknown:
         raise MessageError(f"{where}: unknown field(s) {unknown} for {typename}; fields are {names}")
+    if typename == "geometry_msgs/msg/Quaternion" and "w" not in data:
+        data = {**data, "w": 1.0}  # the ROS 2 default (geometry_msgs/Quaternion: float64 w 1)
     values = {}
     for name, (nodetype, desc) in fields:
         path = f"{where}.{name}"

@@ -110,6 +110,15 @@ def pose_stamped(t_s: float, frame_id: str, pose: Pose2D) -> Any:
     return _PoseStamped(header=header(t_s, frame_id), pose=pose_msg(pose))
 
 
+def position_goal(t_s: float, frame_id: str, x_m: float, y_m: float) -> Any:
+    """geometry_msgs/PoseStamped at (x, y) without orientation (all-zero quaternion): a goal reached with any
+    final heading (see :func:`has_orientation`)."""
+    return _PoseStamped(
+        header=header(t_s, frame_id),
+        pose=_Pose(position=_Point(x=x_m, y=y_m, z=0.0), orientation=_Quaternion(x=0.0, y=0.0, z=0.0, w=0.0)),
+    )
+
+
 def pose2d(pose: Any) -> Pose2D:
     """Planar pose (x, y, yaw) of a geometry_msgs/Pose; z, roll and pitch are dropped."""
     q = pose.orientation
@@ -145,6 +154,13 @@ def pose_of(msg: Any) -> Pose2D:
     """Planar pose of a PoseStamped, PoseWithCovarianceStamped or Odometry message."""
     pose = msg.pose
     return pose2d(pose.pose if hasattr(pose, "pose") else pose)
+
+
+def has_orientation(pose: Any) -> bool:
+    """False for a geometry_msgs/Pose whose quaternion is all zeros: the orientation was left out (a goal with any
+    final heading)."""
+    q = pose.orientation
+    return not (q.x == q.y == q.z == q.w == 0.0)
 
 
 def twist(v_mps: float, omega_radps: float) -> Any:

@@ -43,6 +43,8 @@ class Topic:
             and sending it flushes what its publisher batched before it).
         stack_namespace: the namespace the shipped stacks use for it when it is not the default (``uav0`` for the
             UAV's topics), as the README's table shows it; any namespace works on the wire.
+        subscribers: the services that must receive every message of an event topic: a publisher asking for
+            delivery receipts (``mjnav pub``, :meth:`mjnav.bus.Bus.put_confirmed`) waits for one from each.
     """
 
     name: str
@@ -54,6 +56,7 @@ class Topic:
     per_service: bool = False
     express: bool = False
     stack_namespace: str | None = None
+    subscribers: tuple[str, ...] = ()
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this topic in ``namespace``; per-service topics need ``service``
@@ -207,8 +210,32 @@ TOPICS: dict[str, Topic] = {
             "scan)",
         ),
         Topic("costmap", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "2 Hz", "Inflated costmap, 0–100"),
-        Topic("goal", "geometry_msgs/msg/PoseStamped", _E, "user", "on request", "Navigation goal in `map`"),
-        Topic("cancel", "std_msgs/msg/Empty", _E, "user", "on request", "Cancel the current goal"),
+        Topic(
+            "cmd_vel_teleop",
+            "geometry_msgs/msg/Twist",
+            _S,
+            "user (`mjnav teleop`)",
+            "10 Hz while driving",
+            "Teleoperation command; overrides `cmd_vel` while fresh (the sim's mux)",
+        ),
+        Topic(
+            "goal",
+            "geometry_msgs/msg/PoseStamped",
+            _E,
+            "user",
+            "on request",
+            "Navigation goal in `map` (unconfirmed; `navigate` answers with an id)",
+            subscribers=("planner",),
+        ),
+        Topic(
+            "cancel",
+            "std_msgs/msg/Empty",
+            _E,
+            "user",
+            "on request",
+            "Cancel the current goal",
+            subscribers=("planner",),
+        ),
         Topic("plan", "nav_msgs/msg/Path", _S, "planner", "on change", "Raw grid plan in `map`"),
         Topic("path", "nav_msgs/msg/Path", _S, "smoother", "on change", "Smoothed path the controller follows"),
         Topic(
@@ -218,6 +245,15 @@ TOPICS: dict[str, Topic] = {
             "planner, controller",
             "on change",
             "Goal lifecycle with a typed failure reason",
+        ),
+        Topic(
+            "receipt",
+            "mjnav_msgs/msg/Receipt",
+            _E,
+            "event subscribers",
+            "on request",
+            "Delivery receipt of an event message that asked for one (`mjnav pub`)",
+            per_service=True,
         ),
         Topic(
             "status",
@@ -348,8 +384,16 @@ ENDPOINTS: dict[str, Endpoint] = {
             "std_msgs/msg/String",
             "std_msgs/msg/String",
             "mapper",
-            "Save the map as PGM + YAML; request: .yaml path relative to the mapper's maps_dir (default maps/; "
-            'outside it: refused; empty = the configured save_path); reply: JSON {"yaml": path}',
+            "Save the map as PGM + YAML; request: .yaml path relative to the mapper's `maps_dir` (default `maps/`; "
+            'paths outside it are refused; empty = the configured `save_path`); reply: JSON {"yaml": path}',
+        ),
+        Endpoint(
+            "navigate",
+            "mjnav_msgs/msg/NavigateRequest",
+            "mjnav_msgs/msg/NavigateResponse",
+            "planner",
+            "Drive to a pose (Nav2's NavigateToPose): replies accepted with a goal id, or rejected with a GoalStatus "
+            "error code; feedback and result follow on `goal_status`",
         ),
     )
 }
@@ -380,6 +424,8 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "obstacles": ("sim",),
     "sim_status": ("sim", "uav_sim"),
     "cmd_vel": ("controller", OPERATOR),
+    "cmd_vel_teleop": (OPERATOR,),
+    "receipt": (OWN,),
     "map": ("slam", "mapper"),
     "costmap": ("mapper",),
     "goal": (OPERATOR,),
@@ -401,9 +447,19 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
 }
 
 #: Who may serve (answer) each endpoint when access control is on.
-SERVE_RIGHTS: dict[str, tuple[str, ...]] = {"config": (OWN,), "save_map": ("mapper",), "slam_info": ("slam",)}
+SERVE_RIGHTS: dict[str, tuple[str, ...]] = {
+    "config": (OWN,),
+    "save_map": ("mapper",),
+    "slam_info": ("slam",),
+    "navigate": ("planner",),
+}
 #: Who may call each endpoint when access control is on (only an operator makes the mapper write files).
-CALL_RIGHTS: dict[str, tuple[str, ...]] = {"config": (ANYONE,), "save_map": (OPERATOR,), "slam_info": (ANYONE,)}
+CALL_RIGHTS: dict[str, tuple[str, ...]] = {
+    "config": (ANYONE,),
+    "save_map": (OPERATOR,),
+    "slam_info": (ANYONE,),
+    "navigate": (OPERATOR,),
+}
 
 #: Liveliness key of a running service (a Zenoh liveliness token, not a topic).
 ALIVE_PREFIX = "mjnav/alive"

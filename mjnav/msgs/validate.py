@@ -42,7 +42,10 @@ def _quaternion(q: Any, what: str) -> None:
 
 
 def _pose_stamped(msg: Any) -> None:
-    _quaternion(msg.pose.orientation, "PoseStamped")
+    q = msg.pose.orientation
+    if q.x == q.y == q.z == q.w == 0.0:
+        return  # orientation left out (a goal with any final heading): see ros.has_orientation
+    _quaternion(q, "PoseStamped")
 
 
 def _path(msg: Any) -> None:

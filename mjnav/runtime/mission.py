@@ -265,7 +265,7 @@ class MissionClient:
         if track.last is not None:
             outcome.start = (track.last.x, track.last.y)
         job.current, job.t0, job.length0, job.seen = outcome, t, track.length_m, len(track.statuses)
-        self.goal_pub.put(ros.pose_stamped(t, "map", Pose2D(x, y, 0.0)))
+        self.goal_pub.put(ros.position_goal(t, "map", x, y))  # any final heading: demo goals are positions
 
     def run_goals(
         self, goals: list[tuple[float, float]], *, timeout_s: float, wall_timeout_s: float = math.inf

@@ -44,6 +44,7 @@ class Service(Generic[ConfigT]):
     def __init__(self, config: ConfigT, bus: Bus, log: logging.Logger) -> None:
         self.config = config
         self.bus = bus
+        bus.owner = self.name  # signs the delivery receipts of the event topics it subscribes to
         self.log = log
         state = os.environ.get(STATE_DIR_ENV, "")
         self.state_dir = Path(state) if state else None

@@ -1,7 +1,10 @@
 """The controller service: pure pursuit on ``path`` → ``cmd_vel`` at ``rate_hz`` of sim time.
 
 Speed is regulated by curvature and by the nearest obstacle the lidar sees in front (``scan``); the robot slows on
-approach and stops at the goal, reporting ``reached`` on ``goal_status``. Every command then passes a last-line
+approach and stops within ``goal_tolerance_m`` of the goal; when the goal has an orientation it then turns in place
+to the goal's yaw (within ``yaw_goal_tolerance_rad``; an all-zero quaternion means any heading) and reports
+``reached`` on ``goal_status``. Once within the xy tolerance the goal stays latched there (Nav2's stateful goal
+checker): the turn does not restart the approach. Every command then passes a last-line
 collision check against the robot's own scan (:func:`mjnav.control.collision.safe_command`): the commanded arc is
 rolled forward against the scan's points — moving ones at the velocities two consecutive scans give — and a command
 that would collide is replaced by a slower, stopped or (to clear a crossing obstacle) faster one on the same
@@ -33,7 +36,7 @@ from mjnav.control.collision import (
     safe_command,
     scan_points,
 )
-from mjnav.geometry import Pose2D, PoseHistory
+from mjnav.geometry import Pose2D, PoseHistory, wrap_angle
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
@@ -54,7 +57,10 @@ class ControllerConfig:
         lookahead_gain_s, min_lookahead_m, max_lookahead_m: L = clamp(v·g, L_min, L_max).
         curvature_threshold_invm: κ_h of the curvature heuristic.
         proximity_distance_m: d_prox of the proximity heuristic (distance from the robot's edge).
-        goal_tolerance_m: stop within this distance of the goal.
+        goal_tolerance_m: xy goal tolerance: stop within this distance of the goal.
+        yaw_goal_tolerance_rad: then turn in place until the heading is within this of the goal's yaw.
+        rotate_gain_per_s: turn rate per radian of heading error, ω = k·e, clamped to
+            [``rotate_min_radps``, ``rotate_max_radps``] in magnitude.
         robot_radius_m: subtracted from lidar ranges to get the distance from the robot's edge.
         front_sector_rad: full width of the sector in front whose nearest return slows the robot.
         pose_timeout_s: stop when the newest pose is older than this (sim seconds).
@@ -80,6 +86,10 @@ class ControllerConfig:
     curvature_threshold_invm: float = 1.5
     proximity_distance_m: float = 0.5
     goal_tolerance_m: float = 0.1
+    yaw_goal_tolerance_rad: float = 0.1
+    rotate_gain_per_s: float = 1.5
+    rotate_min_radps: float = 0.2
+    rotate_max_radps: float = 1.0
     robot_radius_m: float = 0.19
     front_sector_rad: float = 1.6
     pose_timeout_s: float = 0.5
@@ -106,9 +116,14 @@ class ControllerConfig:
             "progress_timeout_s",
             "progress_radius_m",
             "planner_timeout_s",
+            "yaw_goal_tolerance_rad",
+            "rotate_gain_per_s",
+            "rotate_min_radps",
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.rotate_max_radps >= self.rotate_min_radps:
+            raise ValueError(f"rotate_max_radps must be >= rotate_min_radps, got {self.rotate_max_radps}")
 
     def pursuit_params(self) -> PurePursuitParams:
         """The pure-pursuit parameters these settings stand for."""
@@ -148,6 +163,14 @@ class _ScanObstacles:
     velocities: Any
 
 
+def goal_yaw_error(goal_pose: Any, yaw_rad: float) -> float | None:
+    """Heading error (goal yaw − ``yaw_rad``, wrapped to [−π, π)) of a geometry_msgs/Pose goal, or None when the
+    goal has no orientation (an all-zero quaternion: any final heading will do)."""
+    if not ros.has_orientation(goal_pose):
+        return None
+    return wrap_angle(ros.pose2d(goal_pose).theta - yaw_rad)
+
+
 class ControllerService(Service[ControllerConfig]):
     """Follows the smoothed path with pure pursuit."""
 
@@ -179,6 +202,7 @@ class ControllerService(Service[ControllerConfig]):
         self.goal_since = math.inf  # its sim time: older paths belong to earlier goals
         self.heartbeat = -math.inf  # sim time of the planner's newest "following" for the goal
         self.progress: tuple[float, float, float] | None = None  # (x, y, sim time) the robot last moved away from
+        self.at_goal_xy = False  # latched once within goal_tolerance_m of the goal: only the final turn remains
         self.path_msg: Any = None  # newest nav_msgs/Path received
         self.path_received = -math.inf  # sim time it arrived
         self.path_points: Any = None
@@ -266,6 +290,7 @@ class ControllerService(Service[ControllerConfig]):
                     self.goal = status
                     self.goal_since = ros.seconds(status.header.stamp)
                     self.progress = None
+                    self.at_goal_xy = False
                     self.pursuit.reset()
                 self.heartbeat = ros.seconds(status.header.stamp)
             elif status.state in (cls.STATE_FAILED, cls.STATE_CANCELED, cls.STATE_REACHED):
@@ -305,6 +330,9 @@ class ControllerService(Service[ControllerConfig]):
             self._stop("no recent pose")
             return
         pose = ros.pose_of(pose_msg)
+        if self.at_goal_xy:
+            self._turn_to_goal(now, pose)
+            return
         try:
             v, w = self.pursuit.compute(pose, self.speed, path, self._obstacle_distance())
         except PathError as exc:
@@ -313,13 +341,29 @@ class ControllerService(Service[ControllerConfig]):
             return
         status = self.pursuit.status
         if self.pursuit.goal_reached:
-            self._stop("goal reached")
-            self._report_reached(now)
+            self.at_goal_xy = True
+            self._turn_to_goal(now, pose)
             return
         if abs(status.cross_track_m) > self.config.lost_distance_m:
             self._stop(f"{abs(status.cross_track_m):.2f} m off the path: waiting for a new plan")
             return
         v, w = self._checked(now, pose, v, w)
+        self.stopped_reason = ""
+        self.speed = v
+        self.cmd_pub.put(ros.twist(v, w))
+
+    def _turn_to_goal(self, now: float, pose: Pose2D) -> None:
+        """At the goal's position: turn in place towards its yaw, or report reached (yaw-free goals at once)."""
+        error = goal_yaw_error(self.goal.goal.pose, pose.theta)
+        cfg = self.config
+        if error is None or abs(error) <= cfg.yaw_goal_tolerance_rad:
+            self._stop("goal reached")
+            self._report_reached(now)
+            return
+        w = math.copysign(
+            min(max(cfg.rotate_gain_per_s * abs(error), cfg.rotate_min_radps), cfg.rotate_max_radps), error
+        )
+        v, w = self._checked(now, pose, 0.0, w)
         self.stopped_reason = ""
         self.speed = v
         self.cmd_pub.put(ros.twist(v, w))

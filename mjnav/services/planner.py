@@ -4,7 +4,14 @@ A goal (``geometry_msgs/PoseStamped`` in ``map``) is accepted, planned with the 
 pose, and published as ``plan`` (``nav_msgs/Path``, cell centres). ``goal_status`` reports accepted → planning →
 following, or failed with a typed reason (start/goal occupied, outside the map, no path). While a goal is active
 the planner replans when a new costmap blocks the current path, and periodically when a cheaper route appeared;
-the goal fails when it becomes unreachable or occupied. The controller reports ``reached`` (or fails the goal when
+the goal fails when it becomes unreachable or occupied.
+
+Goals come two ways: on the ``goal`` topic (fire and forget, like RViz's 2D Goal Pose), or as a request on the
+``navigate`` endpoint (like Nav2's NavigateToPose action), which is answered at once — accepted with the goal id its
+``goal_status`` messages will carry, or rejected with a typed code (frame not ``map``, outside the costmap, in an
+obstacle). Goals, cancels and navigate requests take effect at the planner's next step in the order they arrived
+(requests go through the bus's staging like messages, :meth:`mjnav.bus.Bus.defer`); a newer goal supersedes the
+active one. The controller reports ``reached`` (or fails the goal when
 the robot makes no progress); ``cancel`` ends a goal. Unknown space is traversable at an extra cost (see
 :mod:`mjnav.planning.costmap`). A costmap older than ``costmap_timeout_s`` is not planned on: the plan is withdrawn
 (the robot stops) until a fresh one arrives.
@@ -18,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import threading
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -35,11 +43,12 @@ from mjnav.planning import (
     path_cost,
     plan_grid,
 )
-from mjnav.planning.costmap import clear_disc, planning_grid
+from mjnav.planning.costmap import INSCRIBED, clear_disc, planning_grid
 from mjnav.runtime import Service
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
 _GOAL = "geometry_msgs/msg/PoseStamped"
+_NAVIGATE_REPLY = "mjnav_msgs/msg/NavigateResponse"
 
 
 @dataclass(frozen=True)
@@ -119,8 +128,12 @@ class PlannerService(Service[PlannerConfig]):
     config_class = PlannerConfig
 
     def configure(self) -> None:
-        self.goals = self.bus.subscribe("goal")
-        self.cancels = self.bus.subscribe("cancel")
+        # Goals, cancels and accepted navigate requests, in arrival order: ("goal", msg, id or 0) / ("cancel", …).
+        self._lock = threading.Lock()  # guards _inbox, next_id, _unstepped and the checkpoint file
+        self._inbox: list[tuple[str, Any, int]] = []
+        self._unstepped: tuple[int, Any] | None = None  # the newest navigate goal accepted but not yet stepped
+        self.goals = self.bus.subscribe("goal", callback=lambda msg: self._post("goal", msg, 0))
+        self.cancels = self.bus.subscribe("cancel", callback=lambda _msg: self._post("cancel", None, 0))
         self.costmap = self.bus.subscribe("costmap")
         self.status_in = self.bus.subscribe("goal_status")
         self.pose = self.bus.subscribe(ros.POSE_TOPICS[self.config.pose_source])
@@ -131,6 +144,7 @@ class PlannerService(Service[PlannerConfig]):
         self.goal: _Goal | None = None
         self.next_id = 1
         self._restore()
+        self.bus.serve("navigate", self._on_navigate)
         # Load the compiled search kernels now, not when the first goal arrives.
         free = np.zeros((4, 4), dtype=bool)
         plan_grid(
@@ -178,6 +192,55 @@ class PlannerService(Service[PlannerConfig]):
 
     # ----------------------------------------------------------------------------------------------- loop
 
+    # ----------------------------------------------------------------------------------------------- inputs
+
+    def _post(self, kind: str, msg: Any, goal_id: int) -> None:
+        with self._lock:
+            self._inbox.append((kind, msg, goal_id))
+
+    def _on_navigate(self, request: Any) -> Any:
+        """Answer a ``navigate`` request (in Zenoh's thread): accept with a fresh goal id, or reject with a code."""
+        reply = msg_class(_NAVIGATE_REPLY)
+        goal = request.goal
+        rejection = self._check_goal(goal)
+        if rejection is not None:
+            code, text = rejection
+            self.log.info("navigate request refused: %s", text)
+            return reply(accepted=False, goal_id=0, error_code=getattr(self.status_cls, code), error_text=text)
+        with self._lock:
+            goal_id = self.next_id
+            self.next_id += 1
+            self._unstepped = (goal_id, goal)
+        self._save()  # accepted means kept: a planner restarted before its next step resumes this goal
+        self.bus.defer(lambda: self._post("goal", goal, goal_id))
+        return reply(accepted=True, goal_id=goal_id, error_code=self.status_cls.ERROR_NONE, error_text="")
+
+    def _check_goal(self, goal: Any) -> tuple[str, str] | None:
+        """(GoalStatus error name, reason) when ``goal`` cannot be served on the newest costmap, else None."""
+        if goal.header.frame_id not in ("", "map"):
+            return "ERROR_INVALID_GOAL", f"goal frame {goal.header.frame_id!r} is not 'map'"
+        costmap_msg = self.costmap.latest()
+        if costmap_msg is None:
+            return None  # nothing known yet: the first plan decides
+        cells, frame = ros.grid_frame(costmap_msg)
+        x, y = goal.pose.position.x, goal.pose.position.y
+        row, col = frame.world_to_cell(x, y)
+        if not frame.contains(row, col):
+            (x0, y0), (x1, y1) = frame.cells_to_world([[0, 0], [frame.shape[0] - 1, frame.shape[1] - 1]])
+            half = frame.resolution_m / 2
+            return "ERROR_OUTSIDE_MAP", (
+                f"goal ({x:.2f}, {y:.2f}) m lies outside the costmap, x {x0 - half:.2f}..{x1 + half:.2f} m, "
+                f"y {y0 - half:.2f}..{y1 + half:.2f} m"
+            )
+        if cells[row, col] >= INSCRIBED:
+            return "ERROR_GOAL_OCCUPIED", (
+                f"goal ({x:.2f}, {y:.2f}) m is in an obstacle or closer to one than the robot's radius "
+                f"(cost {cells[row, col]} at cell ({row}, {col}))"
+            )
+        return None
+
+    # ----------------------------------------------------------------------------------------------- loop
+
     def step(self, now: float) -> None:
         cls = self.status_cls
         for status in self.status_in.drain():
@@ -193,10 +256,14 @@ class PlannerService(Service[PlannerConfig]):
                 self.goal = None
                 self._save()
                 self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
-        if self.cancels.drain() and self.goal is not None:
-            self._end(now, "CANCELED", text="canceled by request")
-        for msg in self.goals.drain():
-            self._accept(now, msg)
+        with self._lock:
+            inbox, self._inbox = self._inbox, []
+        for kind, msg, goal_id in inbox:
+            if kind == "cancel":
+                if self.goal is not None:
+                    self._end(now, "CANCELED", text="canceled by request")
+            else:
+                self._accept(now, msg, goal_id)
         if self.goal is not None:
             self._plan(now)
         goal = self.goal
@@ -213,11 +280,17 @@ class PlannerService(Service[PlannerConfig]):
         self._status(now, goal, "FOLLOWING")
         goal.last_sent_t = now
 
-    def _accept(self, now: float, msg: Any) -> None:
+    def _accept(self, now: float, msg: Any, goal_id: int = 0) -> None:
+        """Make ``msg`` the active goal under ``goal_id`` (0: a goal from the topic, given the next id)."""
+        with self._lock:
+            if not goal_id:
+                goal_id = self.next_id
+                self.next_id += 1
+            if self._unstepped is not None and self._unstepped[0] == goal_id:
+                self._unstepped = None
         if self.goal is not None:
-            self._end(now, "CANCELED", text=f"superseded by goal {self.next_id}")
-        goal = _Goal(self.next_id, msg, ros.pose2d(msg.pose))
-        self.next_id += 1
+            self._end(now, "CANCELED", text=f"superseded by goal {goal_id}")
+        goal = _Goal(goal_id, msg, ros.pose2d(msg.pose))
         self.goal = goal
         self._save()
         self._status(now, goal, "ACCEPTED")
@@ -313,12 +386,14 @@ class PlannerService(Service[PlannerConfig]):
         path = self._state_file()
         if path is None:
             return
-        state: dict[str, Any] = {"next_id": self.next_id, "goal": None}
-        if self.goal is not None:
-            state["goal"] = {"goal_id": self.goal.goal_id, "cdr": encode(self.goal.msg, _GOAL).hex()}
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(state), encoding="utf-8")
-        os.replace(tmp, path)
+        with self._lock:
+            state: dict[str, Any] = {"next_id": self.next_id, "goal": None}
+            active = self._unstepped or (None if self.goal is None else (self.goal.goal_id, self.goal.msg))
+            if active is not None:  # an accepted navigate request not yet stepped supersedes the active goal
+                state["goal"] = {"goal_id": active[0], "cdr": encode(active[1], _GOAL).hex()}
+            tmp = path.with_suffix(".tmp")
+            tmp.write_text(json.dumps(state), encoding="utf-8")
+            os.replace(tmp, path)
 
     def _restore(self) -> None:
         """Resume from the checkpoint a previous planner process of this run left, if any."""

@@ -6,6 +6,11 @@ in worlds with moving bodies, ``obstacles`` (their true poses), all stamped in s
 from the newest ``cmd_vel``. The simulator's own watchdog zeroes the wheels when that command is older than
 ``watchdog_timeout_s`` of sim time.
 
+Velocity mux (ROS's twist_mux with two inputs): a command on ``cmd_vel_teleop`` (``mjnav teleop``, a joystick)
+overrides navigation's ``cmd_vel`` while the newest teleop command is at most ``teleop_timeout_s`` of sim time old;
+navigation's commands are dropped meanwhile, and the next one drives the wheels once teleop has been silent that
+long. Without teleop traffic nothing changes, so lockstep runs stay repeatable.
+
 Time: the service steps on wall time (it *is* the clock). In **lockstep** (the default) sim time advances one clock
 tick at a time, and only when every participant — each service on sim time, and mission clients — has finished
 the step that is due (:class:`~mjnav.runtime.lockstep.LockstepBarrier`); time starts once the participants named in
@@ -16,6 +21,7 @@ participants allow), so a run gives the same result on a busy machine as on an i
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, replace
@@ -30,6 +36,8 @@ from mjnav.runtime.lockstep import LockstepBarrier
 
 if TYPE_CHECKING:
     from mjnav.sim import SimRunner
+
+log = logging.getLogger("mjnav.sim")
 
 #: ``sim_status`` messages per sim second.
 SIM_STATUS_RATE_HZ = 10.0
@@ -52,6 +60,7 @@ class SimConfig:
         obstacles_rate_hz: ``obstacles`` (true poses of the world's moving bodies) per sim second; worlds without
             moving bodies publish none.
         watchdog_timeout_s: zero the wheels when the newest command is this old (sim seconds).
+        teleop_timeout_s: ``cmd_vel_teleop`` overrides ``cmd_vel`` until it has been silent this long (sim seconds).
         lidar_beams, lidar_rate_hz, lidar_range_min_m, lidar_range_max_m, lidar_noise_std_m: the lidar.
         record_path: write an MP4 of the run here ("" = no recording).
         record_fps: video frame rate (frames per sim second).
@@ -75,6 +84,7 @@ class SimConfig:
     imu_rate_hz: float = 100.0
     obstacles_rate_hz: float = 10.0
     watchdog_timeout_s: float = 0.5
+    teleop_timeout_s: float = 0.5
     lidar_beams: int = 360
     lidar_rate_hz: float = 10.0
     lidar_range_min_m: float = 0.12
@@ -100,6 +110,7 @@ class SimConfig:
             "imu_rate_hz",
             "obstacles_rate_hz",
             "watchdog_timeout_s",
+            "teleop_timeout_s",
             "record_fps",
             "lockstep_timeout_s",
         ):
@@ -142,6 +153,10 @@ class SimBridge:
         self.sim = sim
         self.config = config
         self._cmd = bus.subscribe("cmd_vel")
+        self._teleop = bus.subscribe("cmd_vel_teleop")
+        self._teleop_t = -math.inf  # sim time of the newest teleop command
+        #: True while teleop overrides navigation.
+        self.teleop_active = False
         self._pub = {
             name: bus.publisher(name)
             for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "truth", "sim_status")
@@ -175,9 +190,24 @@ class SimBridge:
         """Sim seconds between two ``clock`` messages."""
         return self._clock.period
 
-    def apply_command(self) -> None:
-        """Drive the wheels with the newest ``cmd_vel``, if one arrived since the last call."""
-        cmd = self._cmd.take()
+    def apply_command(self, t: float) -> None:
+        """Drive the wheels with the newest command that arrived since the last call (at sim time ``t``): teleop's
+        while it is fresh, else navigation's (the mux, see the module docstring)."""
+        teleop = self._teleop.take()
+        nav = self._cmd.take()
+        if teleop is not None:
+            if not self.teleop_active:
+                log.info("teleop overrides navigation (cmd_vel_teleop)")
+            self.teleop_active = True
+            self._teleop_t = t
+            cmd = teleop
+        elif self.teleop_active and t - self._teleop_t <= self.config.teleop_timeout_s:
+            return  # teleop holds: navigation's commands are dropped
+        else:
+            if self.teleop_active:
+                log.info("teleop silent for %.2f s: navigation resumes", t - self._teleop_t)
+            self.teleop_active = False
+            cmd = nav
         if cmd is not None:
             self.sim.set_command(cmd.linear.x, cmd.angular.z)
             self.commands_applied += 1
@@ -187,7 +217,7 @@ class SimBridge:
         ``clock`` last."""
         sim = self.sim
         clock_due = self._clock.due(t)
-        self.apply_command()
+        self.apply_command(t)
         if self._odom.due(t):
             est = sim.odometry()
             stamp = est.stamp_s

@@ -191,7 +191,10 @@ def test_validate_rejects_nan_and_bad_structure_but_keeps_rep117_ranges() -> Non
             )
         )
     with pytest.raises(MessageError, match="unit quaternion"):
-        validate(from_dict("geometry_msgs/msg/PoseStamped", {}))
+        validate(from_dict("geometry_msgs/msg/PoseStamped", {"pose": {"orientation": {"z": 0.1, "w": 0.0}}}))
+    # Left out, the orientation is the identity (ROS 2's w = 1); all zeros means "no orientation" and passes.
+    assert from_dict("geometry_msgs/msg/PoseStamped", {}).pose.orientation.w == 1.0
+    validate(from_dict("geometry_msgs/msg/PoseStamped", {"pose": {"orientation": {"w": 0.0}}}))
     validate(ros.pose_stamped(1.5, "map", Pose2D(1.0, 2.0, 0.3)))
 
 

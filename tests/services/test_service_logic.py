@@ -364,7 +364,7 @@ def test_a_restarted_planner_resumes_its_goal_under_the_same_id(
     assert (second.service.goal.pose.x, second.service.goal.pose.y) == (3.45, 1.05)
     second.send("costmap", _costmap(0.1, _free()))
     second.send("ground_truth", ros.pose_stamped(0.1, "map", Pose2D(1.0, 2.05, 0.0)))
-    second.step(0.2, {"plan": 1})
+    second.step(0.2, {"plan": 1, "goal_status": 1})  # the plan goes out before its status
     assert _states(second)[-1] == (2, STATUS.STATE_FOLLOWING, 0)
     second.send("goal", ros.pose_stamped(0.3, "map", Pose2D(2.0, 2.05, 0.0)))
     second.step(0.3, {"goal_status": 4})
