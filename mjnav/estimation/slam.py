@@ -393,6 +393,17 @@ class GraphSlam:
         self._grid_kfs = 0
         self._grid_dirty = True
 
+    def reanchor(self, odom_pose: ArrayLike, pose: ArrayLike) -> None:
+        """Continue from ``pose`` (``base_link`` in ``map``) at odometry ``odom_pose``: after the odometry was reset
+        (a restarted driver or simulator) or the robot was carried off (kidnapped). The map and graph are kept; the
+        next scan is predicted from here, and the next keyframe joins the graph with the jump as its odometry edge.
+
+        Raises:
+            SlamError: malformed pose.
+        """
+        self._odom = _pose_arg(odom_pose, "odom_pose")
+        self._pose = _pose_arg(pose, "pose")
+
     # -- public state ------------------------------------------------------------------------------------------
 
     @property

@@ -157,7 +157,22 @@ class Launcher:
             if "lockstep_participants" in {f.name for f in fields(cls.config_class)}:  # the stack's sim
                 participants = [n for n, c in classes.items() if c.uses_sim_time] + list(extra_participants)
                 settings += [f"lockstep={json.dumps(lockstep)}", f"lockstep_participants={json.dumps(participants)}"]
+            if name == "slam" and "sim" in classes:
+                settings += self._initial_pose_from_sim()
             self.overrides[name] = settings + self.overrides.get(name, [])
+
+    def _initial_pose_from_sim(self) -> list[str]:
+        """``initial_pose=[x, y, yaw]`` for SLAM: the start pose of the sim's world, as an operator who placed the
+        robot there would give it (an ``initialpose`` message or an explicit ``--set slam.initial_pose`` wins)."""
+        from mjnav.sim.worlds import world_info
+
+        sim = next(spec for spec in self.specs if spec.name == "sim")
+        try:
+            config = sim.load_config(dict(parse_override(item) for item in self.overrides.get("sim", [])))
+            start = world_info(config.world).start
+        except (ConfigError, ValueError, LookupError):
+            return []  # check() names the problem before anything starts
+        return [f"initial_pose={json.dumps([start.x, start.y, start.theta])}"]
 
     def check(self) -> None:
         """Validate everything before anything starts: every service's config file with its overrides (unknown

@@ -114,6 +114,9 @@ class SlamService(Service[SlamServiceConfig]):
             self.start = (np.asarray(cfg.initial_pose, dtype=float), np.diag([sx**2, sx**2, syaw**2]), None)
 
     def activate(self) -> None:
+        # Called again when the sim clock goes back (the simulator restarted): its odometry starts again from zero
+        # at the world's start, which map → odom already places, so mapping goes on from map → odom ∘ odometry.
+        self.reanchor = getattr(self, "odom", None) is not None
         self.odom = PoseHistory(horizon_s=5.0)
         self.pending.clear()
         self.next_map = 0.0
@@ -162,7 +165,7 @@ class SlamService(Service[SlamServiceConfig]):
             odom = None if latest is None else (latest[1].x, latest[1].y, latest[1].theta)
             self.localizer.set_pose(self.start[0], _positive(cov), odom)
         elif self.slam is not None:
-            self.log.warning("initialpose ignored: mapping already started (restart slam to map afresh)")
+            self.log.info("initialpose ignored: mapping already started (restart slam to map afresh)")
             return
         self.log.info("initial pose (%.2f, %.2f, %.1f°)", pose.x, pose.y, math.degrees(pose.theta))
 
@@ -180,10 +183,20 @@ class SlamService(Service[SlamServiceConfig]):
             if self.localizer is not None:
                 if not self.localizer.initialised:
                     return
+                if self.reanchor and self.map_to_odom is not None:
+                    pose = compose(self.map_to_odom, odom_xyt)
+                    self.localizer.set_pose(pose, _positive(self._covariance()), odom_xyt)
+                self.reanchor = False
                 est = self.localizer.update(odom_xyt, ranges, angles, **kwargs)
             else:
                 if self.slam is None:
                     self.slam = self._new_slam(odom)
+                elif self.reanchor and self.map_to_odom is not None:
+                    self.slam.reanchor(odom_xyt, compose(self.map_to_odom, odom_xyt))
+                    self.log.info(
+                        "odometry restarted: mapping goes on from map -> odom (%.2f, %.2f)", *self.map_to_odom[:2]
+                    )
+                self.reanchor = False
                 est = self.slam.update(stamp, odom_xyt, ranges, angles, **kwargs)
         except SlamError as exc:
             self.failures += 1

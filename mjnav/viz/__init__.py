@@ -49,7 +49,7 @@ def write_static_html(
     *,
     world: str | Path | VisualModel | None = "rooms",
     messages: Iterable[tuple[str, Any]] = (),
-    pose_topic: str = "ground_truth",
+    pose_topic: str = "truth",
     title: str = "mjnav",
 ) -> Path:
     """Draw a world and messages offline and write the self-contained HTML snapshot to ``path``.
@@ -58,8 +58,8 @@ def write_static_html(
         path: output ``.html`` file (parent folders are created).
         world: bundled world name, MJCF path, an already loaded :class:`VisualModel`, or None (messages only).
         messages: ``(topic name, decoded message)`` pairs drawn in order, e.g.
-            ``[("map", grid), ("ground_truth", pose), ("path", path)]``; topics the view does not draw are skipped.
-        pose_topic: the topic that moves the robot (``ground_truth`` or ``odom``).
+            ``[("map", grid), ("truth", pose), ("path", path)]``; topics the view does not draw are skipped.
+        pose_topic: the topic that moves the robot (one of :data:`mjnav.viz.view.POSE_TOPICS`).
         title: page title.
 
     Returns:

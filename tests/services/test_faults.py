@@ -73,7 +73,7 @@ def _known_cells(msg: Any) -> int:
     return int(np.count_nonzero(np.asarray(msg.data) >= 0))
 
 
-@pytest.mark.parametrize("service", ["slam", "mapper", "planner", "smoother"])
+@pytest.mark.parametrize("service", ["slam", "mapper", "planner", "smoother", "viz"])
 def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(service: str) -> None:
     with stack() as (bus, client, lines):
         status, first = _status_of(bus, service)
@@ -105,7 +105,7 @@ def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(servi
         assert _known_cells(after[0]) >= 0.95 * _known_cells(checkpointed[-1]) > 1.2 * _known_cells(maps[0])
 
 
-@pytest.mark.parametrize("service", ["mapper", "planner", "controller"])
+@pytest.mark.parametrize("service", ["slam", "mapper", "planner", "smoother", "controller", "viz"])
 def test_a_hung_service_is_killed_restarted_and_the_mission_completes(service: str) -> None:
     with stack("--hung-timeout", "2") as (bus, client, lines):
         status, first = _status_of(bus, service)
@@ -123,6 +123,33 @@ def test_a_hung_service_is_killed_restarted_and_the_mission_completes(service: s
         assert client.collisions() == 0
     text = "".join(lines)
     assert f"{service} (pid {first.pid}) is hung" in text and "restarting" in text
+
+
+@pytest.mark.parametrize("fault", [signal.SIGKILL, signal.SIGSTOP])
+def test_a_crashed_or_hung_sim_restarts_the_world_and_the_goal_still_ends(fault: signal.Signals) -> None:
+    """The sim restarts from t = 0 with the robot at its start: the services re-activate on the new timeline and
+    keep the goal and SLAM's map; the goal ends reached or with a typed code, never hangs."""
+    with stack("--hung-timeout", "2") as (bus, client, lines):
+        status, first = _status_of(bus, "sim")
+        maps: list[Any] = []
+        bus.subscribe("map", callback=maps.append, immediate=True)
+        runner, outcome = _run_goal_in_background(client, GOAL)
+        _wait_driving(client, 2.0)
+        known_before = _known_cells(maps[-1])
+        os.kill(first.pid, fault)
+        try:
+            restarted = status.wait(120.0, lambda s: s.pid != first.pid)
+            assert restarted is not None, "the launcher did not replace the sim"
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(first.pid, signal.SIGCONT)
+        runner.join(400.0)
+        assert outcome, "the goal never ended"
+        result: GoalOutcome = outcome[0]
+        assert result.result == "reached" or (result.result == "failed" and result.error_code != 0), result
+    text = "".join(lines)
+    assert "the clock went back" in text and "Traceback" not in text
+    assert _known_cells(maps[-1]) >= 0.95 * known_before  # the map outlived the world's restart
 
 
 def test_a_forged_clock_neither_stalls_nor_fast_forwards_the_stack() -> None:

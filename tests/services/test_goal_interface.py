@@ -34,7 +34,14 @@ def _request(x: float, y: float, frame: str = "map") -> object:
 
 def _planner(peer: Peer) -> Harness:
     """Planner on a 4 x 4 m costmap with a wall at x = 2.0-2.2 m, robot at (0.55, 2.05)."""
-    h = Harness(PlannerService, peer, ("goal_status", "plan"), replan_period_s=2.0, heartbeat_period_s=100.0)
+    h = Harness(
+        PlannerService,
+        peer,
+        ("goal_status", "plan"),
+        pose_source="ground_truth",
+        replan_period_s=2.0,
+        heartbeat_period_s=100.0,
+    )
     cells = np.zeros((40, 40), dtype=np.int8)
     cells[:30, 20:22] = 100
     h.send("costmap", _costmap(0.0, cells))
@@ -154,7 +161,7 @@ def _at(h: Harness, t: float, pose: Pose2D, expect: dict[str, int]) -> object:
 
 
 def test_the_controller_turns_in_place_to_the_goal_yaw_then_reports_reached(peer: Peer) -> None:
-    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), goal_tolerance_m=0.1,
+    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), pose_source="ground_truth", goal_tolerance_m=0.1,
                 yaw_goal_tolerance_rad=0.05)  # fmt: skip
     line = np.c_[np.linspace(0.0, 2.0, 21), np.zeros(21)]
     goal = ros.pose_stamped(0.0, "map", Pose2D(2.0, 0.0, math.radians(120.0)))
@@ -181,7 +188,7 @@ def test_the_controller_turns_in_place_to_the_goal_yaw_then_reports_reached(peer
 
 
 def test_a_goal_without_orientation_is_reached_with_any_heading(peer: Peer) -> None:
-    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"))
+    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), pose_source="ground_truth")
     line = np.c_[np.linspace(0.0, 2.0, 21), np.zeros(21)]
     goal = from_dict("geometry_msgs/msg/PoseStamped", {"header": {"frame_id": "map"},
                      "pose": {"position": {"x": 2.0}, "orientation": {"w": 0.0}}})  # fmt: skip

@@ -144,7 +144,7 @@ def test_scene_tree_mirrors_the_meshcat_server() -> None:
     assert ("set_transform", f"{ROOT}/robot") in sent
     n = len(scene.commands())
     assert len(sent) >= n  # every command went to the sink; the tree keeps only the latest per path
-    view.handle("ground_truth", ros.pose_stamped(1.0, "map", Pose2D(1.0, 2.0, 0.0)))
+    view.handle("truth", ros.pose_stamped(1.0, "map", Pose2D(1.0, 2.0, 0.0)))
     assert len(scene.commands()) == n  # a new pose replaces the old transform
     scene.delete(f"{ROOT}/world")
     assert not any(p.startswith(f"{ROOT}/world") for p in scene.paths())
@@ -176,7 +176,7 @@ def test_static_html_is_self_contained_and_replays_the_scene(tmp_path: Path) -> 
     out = write_static_html(
         tmp_path / "snap" / "scene.html",
         world="rooms",
-        messages=[("map", rooms_grid()), ("ground_truth", ros.pose_stamped(1.0, "map", Pose2D(-2.0, -3.0, 0.5)))],
+        messages=[("map", rooms_grid()), ("truth", ros.pose_stamped(1.0, "map", Pose2D(-2.0, -3.0, 0.5)))],
         title="rooms <test>",
     )
     text = out.read_text(encoding="utf-8")

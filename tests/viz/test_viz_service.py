@@ -105,7 +105,7 @@ def test_viz_service_draws_the_bus_live_and_its_snapshot_renders(
         viewer = ViewerClient(f"http://127.0.0.1:{web_port}/static/")
 
         messages: list[tuple[str, Any]] = [
-            ("ground_truth", ros.pose_stamped(3.0, "map", ROBOT_POSE)),
+            ("truth", ros.pose_stamped(3.0, "map", ROBOT_POSE)),
             ("map", rooms_grid()),
             ("costmap", rooms_grid("costmap")),
             ("scan", ring_scan()),
