@@ -190,6 +190,21 @@ def _arc(v_mps: float, omega_radps: float, t: FloatArray) -> FloatArray:
     return np.column_stack((r * np.sin(omega_radps * t), r * (1.0 - np.cos(omega_radps * t))))
 
 
+def _within_range(points_xy: ArrayLike, velocities_mps: ArrayLike, range_m: float) -> tuple[FloatArray, FloatArray]:
+    """The (M', 2) points within ``range_m`` of the robot and their velocities."""
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    u = np.asarray(velocities_mps, dtype=np.float64).reshape(-1, 2)
+    near = np.hypot(p[:, 0], p[:, 1]) <= range_m
+    return p[near], u[near]
+
+
+def _squared_distances(p: FloatArray, u: FloatArray, t: FloatArray, robot: FloatArray) -> FloatArray:
+    """(M, K) squared distances between points p moving at u and the robot's positions ``robot`` at times t."""
+    return (p[:, None, 0] + u[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
+        p[:, None, 1] + u[:, None, 1] * t[None, :] - robot[None, :, 1]
+    ) ** 2
+
+
 def time_to_collision(
     v_mps: float, omega_radps: float, points_xy: ArrayLike, velocities_mps: ArrayLike, params: CollisionCheckParams
 ) -> float:
@@ -204,10 +219,7 @@ def time_to_collision(
     Returns:
         The time, seconds (0 when already in contact); ``inf`` when no contact within the horizons.
     """
-    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
-    u = np.asarray(velocities_mps, dtype=np.float64).reshape(-1, 2)
-    near = np.hypot(p[:, 0], p[:, 1]) <= params.range_m
-    p, u = p[near], u[near]
+    p, u = _within_range(points_xy, velocities_mps, params.range_m)
     if len(p) == 0:
         return math.inf
     reach = params.robot_radius_m + params.margin_m
@@ -224,9 +236,7 @@ def time_to_collision(
         hit[:ks] |= (d2 < reach * reach).any(axis=0)
     pm, um = p[moving], u[moving]
     if len(pm):
-        d2 = (pm[:, None, 0] + um[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
-            pm[:, None, 1] + um[:, None, 1] * t[None, :] - robot[None, :, 1]
-        ) ** 2
+        d2 = _squared_distances(pm, um, t, robot)
         hit |= (d2 < (reach + params.uncertainty_growth_mps * t[None, :]) ** 2).any(axis=0)
     k = np.flatnonzero(hit)
     return float(t[k[0]]) if len(k) else math.inf
@@ -278,15 +288,8 @@ def _closest_approach(
 ) -> float:
     """Smallest distance (m) between the robot centre on the arc (v, ω) and any point within ``range_m`` (moving
     ones at their velocities) over the static horizon; inf without points."""
-    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
-    u = np.asarray(velocities_mps, dtype=np.float64).reshape(-1, 2)
-    near = np.hypot(p[:, 0], p[:, 1]) <= params.range_m
-    p, u = p[near], u[near]
+    p, u = _within_range(points_xy, velocities_mps, params.range_m)
     if len(p) == 0:
         return math.inf
     t = np.arange(0.0, params.static_horizon_s + 1e-9, params.step_s)
-    robot = _arc(v_mps, omega_radps, t)
-    d2 = (p[:, None, 0] + u[:, None, 0] * t[None, :] - robot[None, :, 0]) ** 2 + (
-        p[:, None, 1] + u[:, None, 1] * t[None, :] - robot[None, :, 1]
-    ) ** 2
-    return float(math.sqrt(d2.min()))
+    return float(math.sqrt(_squared_distances(p, u, t, _arc(v_mps, omega_radps, t)).min()))

@@ -57,8 +57,10 @@ class _Track:
     min_range_m: float = math.inf
     statuses: list[Any] = field(default_factory=list)
     truth: PoseHistory = field(default_factory=lambda: PoseHistory(horizon_s=2.0))
-    ate_sq_sum: float = 0.0  # Σ |estimated − true position|², over every estimate received
+    ate_sq_sum: float = 0.0  # Σ |estimated − true position|², over every estimate received while measuring
     ate_n: int = 0
+    measuring: bool = False  # a run_goals job is active: the figures accumulate only then (sim time decides)
+    collisions_at_end: int | None = None  # the sim's count when the last job ended
 
 
 @dataclass
@@ -139,7 +141,7 @@ class MissionClient:
         with self._lock:
             t = self._track
             t.truth.add(ros.seconds(msg.header.stamp), pose)
-            if t.last is not None:
+            if t.last is not None and t.measuring:
                 t.length_m += t.last.distance_to(pose)
             t.last = pose
 
@@ -149,12 +151,13 @@ class MissionClient:
         est = ros.pose_of(msg)
         with self._lock:
             true = self._track.truth.at(stamp)
-            if true is not None:
+            if true is not None and self._track.measuring:
                 self._track.ate_sq_sum += (est.x - true.x) ** 2 + (est.y - true.y) ** 2
                 self._track.ate_n += 1
 
     def ate_rms_m(self) -> float:
-        """RMS position error of every SLAM ``pose`` received so far against the truth, metres (NaN without)."""
+        """RMS position error of every SLAM ``pose`` received while goals ran against the truth at its stamp,
+        metres (NaN without)."""
         with self._lock:
             t = self._track
             return math.sqrt(t.ate_sq_sum / t.ate_n) if t.ate_n else math.nan
@@ -165,7 +168,8 @@ class MissionClient:
         if ok.any():
             m = float(r[ok].min())
             with self._lock:
-                self._track.min_range_m = min(self._track.min_range_m, m)
+                if self._track.measuring:
+                    self._track.min_range_m = min(self._track.min_range_m, m)
 
     def _on_status(self, msg: Any) -> None:
         with self._lock:
@@ -202,17 +206,21 @@ class MissionClient:
             return self._now
 
     def driven_m(self) -> float:
-        """Distance driven since the client started, metres (ground truth)."""
+        """Distance driven while goals ran, metres (ground truth)."""
         with self._lock:
             return self._track.length_m
 
     def min_range_m(self) -> float:
-        """Smallest valid lidar range seen, metres (inf when none)."""
+        """Smallest valid lidar range seen while goals ran, metres (inf when none)."""
         with self._lock:
             return self._track.min_range_m
 
     def collisions(self) -> int:
-        """Collisions counted by the sim so far (0 before its first status)."""
+        """Collisions counted by the sim: while goals run, so far; after, at the end of the last goal (0 before
+        the sim's first status)."""
+        with self._lock:
+            if not self._track.measuring and self._track.collisions_at_end is not None:
+                return self._track.collisions_at_end
         msg = self.sim_status.latest()
         return 0 if msg is None else int(msg.collisions)
 
@@ -257,6 +265,7 @@ class MissionClient:
             job.done = True
             job.final_pose = track.last
             job.ended = (t, time.monotonic())
+            self._stop_measuring()
             return
         if job.started is None:
             job.started = (t, time.monotonic())
@@ -286,6 +295,7 @@ class MissionClient:
         deadline = time.monotonic() + wall_timeout_s
         with self._lock:
             self._job = job
+            self._track.measuring = True
             join = not self._participating
             self._participating = True
             self._next_tick = -math.inf  # the first goal leaves at the first clock from here on
@@ -303,6 +313,7 @@ class MissionClient:
                         job.outcomes.append(job.current)
                     job.done = True
                     job.final_pose = self._track.last
+                    self._stop_measuring()
                     break
                 self._lock.wait(min(remaining, 0.5))
             self._job = None
@@ -310,6 +321,12 @@ class MissionClient:
         if job.started is not None and job.ended is not None and job.ended[1] > job.started[1]:
             self.achieved_rtf = (job.ended[0] - job.started[0]) / (job.ended[1] - job.started[1])
         return job.outcomes
+
+    def _stop_measuring(self) -> None:
+        """(Under the lock.) The job ended: freeze the figures at this sim time, whenever the caller reads them."""
+        msg = self.sim_status.latest()
+        self._track.collisions_at_end = 0 if msg is None else int(msg.collisions)
+        self._track.measuring = False
 
     def run_goal(self, x: float, y: float, *, timeout_s: float, wall_timeout_s: float = math.inf) -> GoalOutcome:
         """Send goal (x, y) and wait until it is reached, fails, or ``timeout_s`` of sim time pass (then cancel)."""

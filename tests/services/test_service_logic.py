@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mjnav.bus import Bus, RemoteError
+from mjnav.bus import Bus, NoReply, RemoteError, wait_until
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
 from mjnav.services.controller import ControllerService
@@ -407,7 +407,18 @@ def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
     np.testing.assert_array_equal(second.service.grid.log_odds, first.service.grid.log_odds)
     # save_map: relative paths land in maps_dir; anything outside it is refused and nothing is written.
     string = msg_class("std_msgs/msg/String")
-    reply = json.loads(second.world.call("save_map", string(data="run1/rooms.yaml"), timeout_s=10.0).data)
+    # The new queryable takes a moment to become known to the caller's session: ask until it answers.
+    replies: list[object] = []
+
+    def saved() -> bool:
+        try:
+            replies.append(second.world.call("save_map", string(data="run1/rooms.yaml"), timeout_s=1.0))
+        except NoReply:
+            return False
+        return True
+
+    assert wait_until(saved, 30.0)
+    reply = json.loads(replies[-1].data)  # type: ignore[attr-defined]
     assert Path(reply["yaml"]) == maps / "run1" / "rooms.yaml" and (maps / "run1" / "rooms.yaml").exists()
     for bad in (str(tmp_path / "evil.yaml"), "../evil.yaml", "run1/../../evil.yaml"):
         with pytest.raises(RemoteError, match="maps_dir"):
