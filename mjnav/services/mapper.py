@@ -1,17 +1,18 @@
-"""The mapper service: the navigation ``costmap`` (Nav2's layered style), and a map of its own on request.
+"""The mapper service: the navigation ``costmap`` (Nav2's layered style).
 
-With ``map_source = "slam"`` (the default stack) it is the costmap service: a static layer from SLAM's ``map``
-(resampled onto the mapper's fixed grid), an obstacle layer from the newest ``scan`` at SLAM's ``pose`` (the
-returns within ``obstacle_range_m`` — moving obstacles appear at once, whatever the map says), and Nav2-style
-inflation (0–100, −1 unknown), at ``publish_rate_hz`` of sim time.
-
-With ``map_source = "scan"`` it maps by itself: each new scan is fused into a log-odds
-:class:`~mjnav.mapping.OccupancyGrid` at the pose the robot had when the scan was taken (interpolated from
-``pose_source``), and it publishes that ``map`` (probabilities 0–100, −1 unknown) beside the costmap; the map is
+With ``map_source = "scan"`` (the default) each new scan is fused into a persistent log-odds
+:class:`~mjnav.mapping.OccupancyGrid` (marking and clearing, like Nav2's obstacle layer) at the pose the robot had
+when the scan was taken, interpolated from ``pose_source`` (SLAM's ``pose`` by default), and inflated into
+``costmap`` (0–100, −1 unknown) at ``publish_rate_hz`` of sim time. Every scan counts (SLAM's own map holds only its
+keyframes), which keeps thin walls solid in the costmap. The grid is published on ``map`` only when the mapper is
+the map's source (``pose_source`` ``ground_truth`` or ``odom``; on SLAM's pose, SLAM owns ``map``); it is
 checkpointed in the run's state directory, saved as PGM + YAML on request (endpoint ``save_map``) and on exit
-(``save_path``); ``prior_map`` starts from a saved map. In slam mode ``save_map`` saves the newest SLAM map.
-"""
+(``save_path``); ``prior_map`` starts from a saved map.
 
+With ``map_source = "slam"`` the static layer is SLAM's ``map`` (resampled onto the mapper's fixed grid) and an
+obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` at SLAM's ``pose``; ``save_map`` then
+saves the newest SLAM map.
+"""
 from __future__ import annotations
 
 import json
@@ -55,7 +56,7 @@ class MapperConfig:
 
     rate_hz: float = 20.0
     publish_rate_hz: float = 2.0
-    map_source: Literal["slam", "scan"] = "slam"
+    map_source: Literal["slam", "scan"] = "scan"
     pose_source: Literal["slam", "ground_truth", "odom"] = "slam"
     obstacle_range_m: float = 3.0
     width_m: float = 20.0
@@ -114,7 +115,8 @@ class MapperService(Service[MapperConfig]):
         self.scan = self.bus.subscribe("scan")
         self.bus.subscribe(ros.POSE_TOPICS[cfg.pose_source], callback=self._on_pose)
         self.static = self.bus.subscribe("map") if self.slam_mode else None
-        self.map_pub = None if self.slam_mode else self.bus.publisher("map")
+        # On SLAM's pose, SLAM owns the ``map`` topic; the mapper's own grid is then only the costmap's layer.
+        self.map_pub = None if self.slam_mode or cfg.pose_source == "slam" else self.bus.publisher("map")
         self.costmap_pub = self.bus.publisher("costmap")
         self.obstacles: Any = np.zeros((0, 2))  # the obstacle layer: newest scan's returns in map, (M, 2)
         self._centres: Any = None  # (H·W, 2) map-frame cell centres of the grid (slam mode, computed once)

@@ -133,13 +133,13 @@ def test_demo_reaches_two_goals_in_the_rooms_world_from_an_unknown_map(tmp_path:
 
 def test_unreachable_and_occupied_goals_fail_with_the_right_reason(tmp_path: Path) -> None:
     prior = _true_map("rooms", tmp_path / "prior.yaml")
-    # A saved map: SLAM localizes on it (the costmap's static layer is the map from the start).
-    with running_stack("slam.mode=localization", f"slam.map_file={json.dumps(str(prior))}") as (
-        bus,
-        client,
-        _proc,
-        lines,
-    ):
+    # A saved map: SLAM localizes on it and the costmap starts from it.
+    sets = (
+        "slam.mode=localization",
+        f"slam.map_file={json.dumps(str(prior))}",
+        f"mapper.prior_map={json.dumps(str(prior))}",
+    )
+    with running_stack(*sets) as (bus, client, _proc, lines):
         outside = client.run_goal(40.0, 40.0, timeout_s=30.0, wall_timeout_s=60.0)
         assert (outside.result, outside.error_code) == ("failed", STATUS.ERROR_OUTSIDE_MAP), outside
         in_wall = client.run_goal(0.0, 0.0, timeout_s=30.0, wall_timeout_s=60.0)  # the centre of the rooms' cross
@@ -224,7 +224,7 @@ def _nan_laden(msgtype: str, rng: np.random.Generator) -> object:
 SUBSCRIBED = {
     "sim": ["cmd_vel"],
     "slam": ["clock", "odom", "scan", "initialpose"],
-    "mapper": ["clock", "scan", "pose", "map"],
+    "mapper": ["clock", "scan", "pose"],
     "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "pose"],
     "smoother": ["clock", "plan", "costmap"],
     "controller": ["clock", "path", "pose", "scan", "goal_status", "map"],

@@ -476,7 +476,16 @@ def test_slam_waits_for_initialpose_then_publishes_pose_map_and_tf(peer: Peer) -
 
 
 def test_costmap_from_slams_map_with_the_newest_scan_as_obstacle_layer(peer: Peer) -> None:
-    h = Harness(MapperService, peer, ("costmap",), width_m=4.0, height_m=4.0, origin_m=(0.0, 0.0), resolution_m=0.1)
+    h = Harness(
+        MapperService,
+        peer,
+        ("costmap",),
+        map_source="slam",
+        width_m=4.0,
+        height_m=4.0,
+        origin_m=(0.0, 0.0),
+        resolution_m=0.1,
+    )
     static = np.zeros((40, 40), dtype=np.int8)
     static[:, 30] = 100  # a wall at x = 3.0..3.1 in SLAM's map (same frame here)
     h.send("map", _costmap(0.0, static))
