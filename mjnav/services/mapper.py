@@ -13,6 +13,7 @@ With ``map_source = "slam"`` the static layer is SLAM's ``map`` (resampled onto 
 obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` at SLAM's ``pose``; ``save_map`` then
 saves the newest SLAM map.
 """
+
 from __future__ import annotations
 
 import json
