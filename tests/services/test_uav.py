@@ -75,7 +75,7 @@ def test_takeoff_hover_land_then_failsafe_landing_when_setpoints_stop() -> None:
         # the client's 6 s is relative to its first step; the last trajectory left at the last 0.2 s resend before 6 s
         # and the controller saw it one tick later; the state reaches the client one tick after the switch
         start = t_armed - 0.02  # armed one tick after the client's first step
-        assert 6.0 + 0.5 - 0.2 < t_land[0] - start <= 6.0 + 0.5 + 0.1
+        assert 6.0 + 0.5 - 0.2 - 1e-6 <= t_land[0] - start <= 6.0 + 0.5 + 0.1  # 1e-6: stamps are float sums
         assert failsafe.landed and failsafe.final_state == "disarmed"
         times, track = client.truth_track()
         assert track[-1][2] < 0.1  # on the ground again
