@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -25,8 +24,9 @@ import numpy as np
 
 from mjnav.bus import Bus
 from mjnav.jsonsafe import json_safe
-from mjnav.msgs import msg_class, ros
+from mjnav.msgs import ros
 from mjnav.msgs import uav as uav_msgs
+from mjnav.runtime.participant import LockstepParticipant
 
 #: Sample spacing of the streamed trajectory, s.
 TRAJECTORY_DT_S = 0.05
@@ -179,7 +179,7 @@ def _ns(t: float) -> int:
     return round(t * 1e9)
 
 
-class FlightClient:
+class FlightClient(LockstepParticipant):
     """Arms the UAV, streams a :class:`FlightPlan`, lands it and scores the flight (a lockstep participant).
 
     Args:
@@ -199,18 +199,11 @@ class FlightClient:
         period_s: float = 0.02,
         resend_s: float = 0.2,
     ) -> None:
-        self.bus = bus
+        self._init_participant(bus, name, period_s)
         self.origin = origin
-        self.name = name
-        self.period_s = period_s
         self.resend_s = resend_s
-        self._lock = threading.Condition()
         self._rec = _Record()
-        self._now = math.nan
-        self._next_tick = math.nan
         self._job: dict[str, Any] | None = None
-        self._participating = False
-        bus.staged = True
         self.sim_status = bus.subscribe("sim_status")
         self.flight_state = bus.subscribe("flight_state", callback=self._on_state)
         bus.subscribe("ground_truth", callback=self._on_truth)
@@ -218,9 +211,7 @@ class FlightClient:
         bus.subscribe("gps", callback=self._on_gps)
         self.arm_pub = bus.publisher("arm")
         self.trajectory_pub = bus.publisher("trajectory")
-        self._ready_pub = bus.publisher("lockstep", service=name)
-        self._ready = msg_class("mjnav_msgs/msg/LockstepReady")
-        bus.subscribe("clock", callback=self._on_clock, immediate=True)
+        self._subscribe_clock()
 
     # ----------------------------------------------------------------------------------------- measurements
 
@@ -267,25 +258,6 @@ class FlightClient:
         return np.array(keys, dtype=np.float64) / 1e9, pts
 
     # ----------------------------------------------------------------------------------------------- steps
-
-    def _on_clock(self, msg: Any) -> None:
-        t = ros.seconds(msg.clock)
-        self.bus.commit()
-        with self._lock:
-            self._now = t
-            if not self._participating:
-                return
-            if self._next_tick == -math.inf:
-                self._next_tick = t
-            if t < self._next_tick - 1e-9:
-                return
-            self._step(t)
-            while self._next_tick <= t + 1e-9:
-                self._next_tick += self.period_s
-            self._lock.notify_all()
-        self._ready_pub.put(
-            self._ready(header=ros.header(t, ""), participant=self.name, ready_until=ros.time_msg(self._next_tick))
-        )
 
     def _step(self, t: float) -> None:
         job = self._job
@@ -356,11 +328,7 @@ class FlightClient:
         }
         with self._lock:
             self._job = job
-            join = not self._participating
-            self._participating = True
-            self._next_tick = -math.inf
-        if join:
-            self.bus.declare_lockstep(self.name)
+        self._participate()
         deadline = time.monotonic() + wall_timeout_s
         with self._lock:
             while not job["done"] and time.monotonic() < deadline:

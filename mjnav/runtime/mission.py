@@ -8,7 +8,6 @@ client would, waits on ``goal_status``, and measures the run from the sim's own 
 from __future__ import annotations
 
 import math
-import threading
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -19,7 +18,7 @@ from mjnav.bus import Bus
 from mjnav.geometry import Pose2D, PoseHistory
 from mjnav.jsonsafe import json_safe
 from mjnav.msgs import msg_class, ros
-from mjnav.runtime.runner import MAX_CLOCK_JUMP_S
+from mjnav.runtime.participant import LockstepParticipant
 
 _STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
 _FINAL = {_STATUS.STATE_REACHED: "reached", _STATUS.STATE_FAILED: "failed", _STATUS.STATE_CANCELED: "canceled"}
@@ -80,7 +79,7 @@ class _Job:
     ended: tuple[float, float] | None = None  # (sim, wall) when the last goal ended
 
 
-class MissionClient:
+class MissionClient(LockstepParticipant):
     """Sends goals and measures the run on a :class:`~mjnav.bus.Bus` (any namespace).
 
     From its first :meth:`run_goals` on, the client is a lockstep participant called ``name``: it steps every
@@ -102,24 +101,17 @@ class MissionClient:
     ) -> None:
         """``initial_pose``: sent on ``initialpose`` (σ ``initial_sigma`` = (m, rad)) in the client's first step,
         before the first goal, as an operator tells the robot where it starts (what SLAM starts from)."""
-        self.bus = bus
+        self._init_participant(bus, name, period_s)
         self._initial: Any = None
         if initial_pose is not None:
             sxy, syaw = initial_sigma
             self._initial = (initial_pose, np.diag([sxy**2, sxy**2, syaw**2]))
-        self.name = name
-        self.period_s = period_s
-        self._lock = threading.Condition()
         self._track = _Track()
         self._job: _Job | None = None
-        self._now = math.nan
-        self.rejected_clocks = 0  # clock messages dropped as too far ahead (forged)
-        self._next_tick = math.nan
         #: True pose when the last :meth:`run_goals` ended (None before).
         self.final_pose: Pose2D | None = None
         #: Sim seconds per wall second from the first goal's start to the last goal's end (NaN before).
         self.achieved_rtf = math.nan
-        bus.staged = True
         self.sim_status = bus.subscribe("sim_status")
         self.truth = bus.subscribe("truth", callback=self._on_truth)
         bus.subscribe("pose", callback=self._on_estimate)
@@ -129,10 +121,7 @@ class MissionClient:
         bus.subscribe("goal_status", callback=self._on_status)
         self.goal_pub = bus.publisher("goal")
         self.cancel_pub = bus.publisher("cancel")
-        self._ready_pub = bus.publisher("lockstep", service=name)
-        self._ready = msg_class("mjnav_msgs/msg/LockstepReady")
-        self.clock = bus.subscribe("clock", callback=self._on_clock, immediate=True)
-        self._participating = False
+        self.clock = self._subscribe_clock()
 
     # ----------------------------------------------------------------------------------------- measurements
 
@@ -174,31 +163,6 @@ class MissionClient:
     def _on_status(self, msg: Any) -> None:
         with self._lock:
             self._track.statuses.append(msg)
-
-    def _on_clock(self, msg: Any) -> None:
-        t = ros.seconds(msg.clock)
-        with self._lock:
-            if t > self._now + MAX_CLOCK_JUMP_S:  # forged or corrupt: the services drop it too
-                self.rejected_clocks += 1
-                return
-        self.bus.commit()  # what arrived before this clock: measurements and statuses up to t
-        with self._lock:
-            if not t >= self._now:  # the first clock, or the sim restarted
-                self._next_tick = t
-            self._now = t
-            if not self._participating:
-                return
-            if self._next_tick == -math.inf:
-                self._next_tick = t
-            if t < self._next_tick - 1e-9:
-                return
-            self._step(t)
-            while self._next_tick <= t + 1e-9:
-                self._next_tick += self.period_s
-            self._lock.notify_all()
-        self._ready_pub.put(
-            self._ready(header=ros.header(t, ""), participant=self.name, ready_until=ros.time_msg(self._next_tick))
-        )
 
     def now(self) -> float:
         """Latest sim time, seconds (NaN before the first clock)."""
@@ -296,12 +260,7 @@ class MissionClient:
         with self._lock:
             self._job = job
             self._track.measuring = True
-            join = not self._participating
-            self._participating = True
-            self._next_tick = -math.inf  # the first goal leaves at the first clock from here on
-        if join:
-            # From now on the sim waits for this client's steps; a sim that expects it starts time only now.
-            self.bus.declare_lockstep(self.name)
+        self._participate()  # the first goal leaves at the first clock from here on
         with self._lock:
             while not job.done:
                 remaining = deadline - time.monotonic()
