@@ -327,7 +327,14 @@ class ControllerService(Service[ControllerConfig]):
             self._turn_to_goal(now, pose)
             return
         try:
-            v, w = self.pursuit.compute(pose, self.speed, path, self._obstacle_distance())
+            v, w = self.pursuit.compute(
+                pose,
+                self.speed,
+                path,
+                self._obstacle_distance(),
+                obstacles_xy=None if self.obstacles is None else self.obstacles.points,
+                chord_clearance_m=self.config.robot_radius_m + self.config.collision_margin_m,
+            )
         except PathError as exc:
             self.path_msg = None
             self._stop(f"unusable path: {exc}")
