@@ -112,6 +112,8 @@ class SlamService(Service[SlamServiceConfig]):
         if self.start is None and self.map_to_odom is None and cfg.initial_pose:
             sx, syaw = cfg.initial_sigma
             self.start = (np.asarray(cfg.initial_pose, dtype=float), np.diag([sx**2, sx**2, syaw**2]), None)
+            if self.localizer is not None:
+                self.localizer.set_pose(self.start[0], _positive(self.start[1]))  # odometry: the next update's
 
     def activate(self) -> None:
         # Called again when the sim clock goes back (the simulator restarted): its odometry starts again from zero
