@@ -68,6 +68,9 @@ class ControllerConfig:
         path_timeout_s: stop when no path arrived for this long (sim seconds; the planner re-sends every second).
         lost_distance_m: stop when the robot is further than this from the path.
         collision_margin_m: clearance the collision check keeps beyond ``robot_radius_m``.
+        chord_margin_m: the straight line to the lookahead point keeps this beyond ``robot_radius_m`` from every
+            scan point, else the lookahead shrinks (pure pursuit cuts a corner along that line); as the smoother
+            keeps its path ``margin_m`` off the inscribed radius.
         collision_static_horizon_s: how far ahead (seconds of the commanded arc) static scan points are checked.
         collision_moving_horizon_s: how far ahead moving scan points are checked.
         moving_speed_mps: scan points moving faster than this between two scans count as moving.
@@ -97,6 +100,7 @@ class ControllerConfig:
     path_timeout_s: float = 3.0
     lost_distance_m: float = 1.0
     collision_margin_m: float = 0.02
+    chord_margin_m: float = 0.1
     collision_static_horizon_s: float = 0.3
     collision_moving_horizon_s: float = 4.0
     moving_speed_mps: float = 0.25
@@ -123,6 +127,8 @@ class ControllerConfig:
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.chord_margin_m >= 0:
+            raise ValueError(f"chord_margin_m must be >= 0, got {self.chord_margin_m}")
         if not self.rotate_max_radps >= self.rotate_min_radps:
             raise ValueError(f"rotate_max_radps must be >= rotate_min_radps, got {self.rotate_max_radps}")
 
@@ -333,7 +339,7 @@ class ControllerService(Service[ControllerConfig]):
                 path,
                 self._obstacle_distance(),
                 obstacles_xy=None if self.obstacles is None else self.obstacles.points,
-                chord_clearance_m=self.config.robot_radius_m + self.config.collision_margin_m,
+                chord_clearance_m=self.config.robot_radius_m + self.config.chord_margin_m,
             )
         except PathError as exc:
             self.path_msg = None
