@@ -1,5 +1,8 @@
 """Bus benchmark: a 360-range LaserScan through mjnav's codec + bus vs raw Zenoh bytes of the same size.
 
+A third variant, ``mjnav (rosbags codec)``, runs the same bus with rosbags' serialisers in place of the compiled
+codecs of ``mjnav.msgs.cdr``: the end-to-end figure that module is kept for.
+
 Both run in the same invocation, over the same in-process router on loopback, publisher in a child process and
 subscriber here (two processes, like two services). Latency is one-way, publish call → subscriber callback with the
 decoded message, from CLOCK_MONOTONIC stamps carried in the payload (the header stamp for mjnav, the first 8 bytes
@@ -25,9 +28,19 @@ import numpy as np
 
 from mjnav.bus import Bus, BusConfig, cdr_encoding
 from mjnav.bus.bus import publisher_qos
-from mjnav.msgs import encode, from_dict, ros, topic
+from mjnav.msgs import codec, encode, from_dict, ros, topic
 
 BEAMS = 360
+#: Variants in the order they run: raw Zenoh, the bus, the bus with rosbags' codec instead of the compiled one.
+VARIANTS = ("raw", "mjnav", "mjnav_rosbags")
+LABELS = {"raw": "raw zenoh", "mjnav": "mjnav bus", "mjnav_rosbags": "bus+rosbags"}
+
+
+def _use_variant_codec(variant: str) -> None:
+    """For ``mjnav_rosbags``: make every publisher and subscription of this process use rosbags' codec."""
+    if variant == "mjnav_rosbags":
+        setattr(codec, "encoder", codec.rosbags_encoder)  # noqa: B010 (replaces the module function on purpose)
+        setattr(codec, "decoder", codec.rosbags_decoder)  # noqa: B010
 
 
 def _scan() -> Any:
@@ -58,9 +71,10 @@ def publisher(endpoint: str, variant: str, count: int, rate_hz: float) -> None:
     template = _scan()
     stamp = template.header.stamp
     period = 1.0 / rate_hz if rate_hz > 0 else 0.0
+    _use_variant_codec(variant)
     bus = Bus.open(BusConfig(connect=(endpoint,)))
     try:
-        if variant == "mjnav":
+        if variant != "raw":
             pub = bus.publisher("scan")
             pub.wait_for_subscribers(10.0)
             put = None
@@ -100,7 +114,7 @@ def measure(endpoint: str, variant: str, count: int, rate_hz: float) -> dict[str
     lock = threading.Lock()
     bus = Bus.open(BusConfig(connect=(endpoint,)))
     try:
-        if variant == "mjnav":
+        if variant != "raw":
 
             def on_msg(msg: Any) -> None:
                 now = time.monotonic()
@@ -176,41 +190,47 @@ def main() -> int:
     lat_n, thr_n = (1000, 10_000) if args.quick else (3000, 50_000)
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     router = Bus.open(BusConfig(mode="router", connect=(), listen=(endpoint,)))
-    runs: dict[str, list[dict[str, float]]] = {"raw": [], "mjnav": []}
+    runs: dict[str, list[dict[str, float]]] = {v: [] for v in VARIANTS}
     results: dict[str, dict[str, dict[str, float]]] = {}
     try:
-        # Latency runs alternate between the variants so that drift on a shared machine hits both alike; the
+        # Latency runs alternate between the variants so that drift on a shared machine hits all alike; the
         # figures are the medians over the repeats.
         for _ in range(args.repeat):
-            for variant in ("raw", "mjnav"):
+            for variant in VARIANTS:
                 runs[variant].append(measure(endpoint, variant, lat_n, 500.0))
-        for variant in ("raw", "mjnav"):
+        for variant in VARIANTS:
             latency = {k: float(np.median([r[k] for r in runs[variant]])) for k in runs[variant][0]}
             results[variant] = {"latency": latency, "throughput": measure(endpoint, variant, thr_n, 0.0)}
     finally:
         router.close()
     size = len(encode(_scan()))
-    raw, ours = results["raw"], results["mjnav"]
-    p50_ratios = [m["p50_us"] / r["p50_us"] for r, m in zip(runs["raw"], runs["mjnav"], strict=True)]
+    ratios = {v: [m["p50_us"] / r["p50_us"] for r, m in zip(runs["raw"], runs[v], strict=True)] for v in VARIANTS[1:]}
     if args.json:
-        print(json.dumps({"payload_bytes": size, "p50_ratio_per_repeat": p50_ratios, **results}))
+        print(json.dumps({"payload_bytes": size, "p50_ratio_per_repeat": ratios, **results}))
         return 0
     print(f"LaserScan, {BEAMS} ranges, {size} bytes; publisher and subscriber in separate processes via a router")
     print(f"latency: median of {args.repeat} alternating runs of {lat_n} messages at 500 Hz per variant")
-    print(f"{'':24s} {'raw zenoh':>12s} {'mjnav bus':>12s} {'ratio':>8s}")
+    print(
+        f"{'':24s}" + "".join(f" {LABELS[v]:>12s}" for v in VARIANTS) + "".join(f" {'ratio':>6s}" for _ in VARIANTS[1:])
+    )
     for label, phase, key in (
         ("latency p50 (µs)", "latency", "p50_us"),
         ("latency p99 (µs)", "latency", "p99_us"),
         ("throughput (msg/s)", "throughput", "rate_per_s"),
     ):
-        a, b = raw[phase][key], ours[phase][key]
-        print(f"{label:24s} {a:12.1f} {b:12.1f} {b / a:8.2f}")
-    for variant in ("raw", "mjnav"):
+        values = [results[v][phase][key] for v in VARIANTS]
+        print(
+            f"{label:24s}"
+            + "".join(f" {x:12.1f}" for x in values)
+            + "".join(f" {x / values[0]:6.2f}" for x in values[1:])
+        )
+    for variant in VARIANTS:
         r = results[variant]["throughput"]
         print(
             f"{variant}: received {r['received']} of {r['sent']} in the throughput run (snapshot topic: drops allowed)"
         )
-    print("p50 ratio per repeat: " + ", ".join(f"{r:.2f}" for r in p50_ratios))
+    for variant in VARIANTS[1:]:
+        print(f"p50 ratio per repeat, {LABELS[variant]}: " + ", ".join(f"{r:.2f}" for r in ratios[variant]))
     print("goal: latency <= 1.3x raw, >= 50,000 scans/s")
     return 0
 
