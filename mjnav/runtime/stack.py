@@ -25,9 +25,12 @@ from mjnav.msgs.topics import DEFAULT_NAMESPACE, check_namespace
 from mjnav.runtime.config import ConfigError, build_config, parse_override, read_toml
 from mjnav.runtime.service import Service
 
-#: Services a stack runs only when asked (``mjnav up --ros rmw_zenoh``): name → ``module:Class``. Their config is
-#: ``<name>.toml`` beside the stack file (all defaults when there is none).
-OPTIONAL_SERVICES = {"ros_bridge": "mjnav.services.ros_bridge:RosBridgeService"}
+#: Services a stack runs only when asked (``mjnav up --ros rmw_zenoh``, ``--foxglove``): name → ``module:Class``.
+#: Their config is ``<name>.toml`` beside the stack file (all defaults when there is none).
+OPTIONAL_SERVICES = {
+    "ros_bridge": "mjnav.services.ros_bridge:RosBridgeService",
+    "foxglove": "mjnav.services.foxglove:FoxgloveService",
+}
 
 
 def services_dir() -> Path:
