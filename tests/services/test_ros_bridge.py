@@ -9,18 +9,20 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from mjnav.bus import Bus, wait_until
+from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import from_dict, ros
 from mjnav.msgs.rmw_zenoh import GID_BYTES, parse_attachment
 from mjnav.runtime.config import ConfigError
 from mjnav.runtime.stack import load_stack
 from mjnav.services.ros_bridge import RosBridgeConfig, RosBridgeService
+from tests.services.test_navigation import up_process
 
 sdk = pytest.importorskip("zenoh_ros2_sdk", reason="the rmw_zenoh peer (pip install zenoh-ros2-sdk) is not installed")
 
@@ -37,20 +39,29 @@ def bridge(peer: Callable[..., Bus]) -> Iterator[RosBridgeService]:
     service.deactivate()
 
 
-@pytest.fixture
-def ros_client(router_endpoint: str) -> Iterator[dict[str, Any]]:
-    """Where the rmw_zenoh client connects; its process-wide session is closed and forgotten afterwards."""
+@contextmanager
+def sdk_session(endpoint: str, domain_id: int = DOMAIN) -> Iterator[dict[str, Any]]:
+    """Where the rmw_zenoh client connects (its keyword arguments); its process-wide session is closed and
+    forgotten afterwards."""
     from zenoh_ros2_sdk import message_registry
     from zenoh_ros2_sdk.session import ZenohSession
 
     message_registry._registry = None
     sdk.get_registry(str(MSG_DIR))
-    host, port = router_endpoint.removeprefix("tcp/").rsplit(":", 1)
-    yield {"router_ip": host, "router_port": int(port), "domain_id": DOMAIN}
-    if ZenohSession._instance is not None:
-        ZenohSession._instance.close()
-        ZenohSession._instance = None
-    message_registry._registry = None
+    host, port = endpoint.removeprefix("tcp/").rsplit(":", 1)
+    try:
+        yield {"router_ip": host, "router_port": int(port), "domain_id": domain_id}
+    finally:
+        if ZenohSession._instance is not None:
+            ZenohSession._instance.close()
+            ZenohSession._instance = None
+        message_registry._registry = None
+
+
+@pytest.fixture
+def ros_client(router_endpoint: str) -> Iterator[dict[str, Any]]:
+    with sdk_session(router_endpoint) as kwargs:
+        yield kwargs
 
 
 def test_a_ros2_subscriber_receives_the_stacks_scan_and_lists_the_topic(
@@ -197,3 +208,28 @@ def test_the_bridge_is_an_optional_service_of_the_stack() -> None:
 def test_bad_bridge_settings_are_refused(fields: dict[str, Any], match: str) -> None:
     with pytest.raises(ValueError, match=match):
         RosBridgeConfig(**fields)
+
+
+def test_mjnav_up_ros_rmw_zenoh_a_ros2_node_drives_the_simulated_robot() -> None:
+    """The whole path: `mjnav up --ros rmw_zenoh` with the sim; a ROS 2 node (the independent client) reads the
+    clock and odometry and publishes cmd_vel on domain 0, and the simulated robot moves."""
+    with up_process("--only", "sim", "--ros", "rmw_zenoh", "--set", "ros_bridge.domain_id=0") as (port, _, lines):
+        bus = Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",)))
+        try:
+            assert wait_until(lambda: {"sim", "ros_bridge"} <= set(bus.alive_services(0.5)), 120.0), "".join(lines)
+            with sdk_session(f"tcp/127.0.0.1:{port}", domain_id=0) as kwargs:
+                clocks: list[Any] = []
+                sdk.ROS2Subscriber("/robot0/clock", "rosgraph_msgs/msg/Clock", clocks.append, **kwargs)
+                odom: list[Any] = []
+                sdk.ROS2Subscriber("/robot0/odom", "nav_msgs/msg/Odometry", odom.append, **kwargs)
+                twist = sdk.ROS2Publisher("/robot0/cmd_vel", "geometry_msgs/msg/Twist", **kwargs)
+                vector = sdk.get_message_class("geometry_msgs/msg/Vector3")
+
+                def moving() -> bool:
+                    twist.publish(linear=vector(x=0.4, y=0.0, z=0.0), angular=vector(x=0.0, y=0.0, z=0.0))
+                    return bool(odom) and odom[-1].twist.twist.linear.x > 0.2
+
+                assert wait_until(moving, 60.0, poll_s=0.05), "".join(lines)[-3000:]
+                assert clocks and clocks[-1].clock.sec + clocks[-1].clock.nanosec * 1e-9 > 0.0
+        finally:
+            bus.close()
