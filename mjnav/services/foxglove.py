@@ -11,6 +11,7 @@ Foxglove app (import it from the app's layout menu) that shows the stack in name
 
 from __future__ import annotations
 
+import importlib.util
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -52,6 +53,8 @@ class FoxgloveConfig:
                 raise ValueError(f"unknown topic {name!r}; topics: {', '.join(TOPICS)}")
             if row.per_service:
                 raise ValueError(f"topic {name!r} is per service: it is not streamed")
+        if importlib.util.find_spec("foxglove") is None:
+            raise ValueError("the foxglove service needs foxglove-sdk: pip install -e '.[foxglove]'")
 
 
 def streamed_topics(config: FoxgloveConfig) -> list[Topic]:
