@@ -58,7 +58,7 @@ class MapperConfig:
             restarted mapper resumes (``mjnav up`` gives one per run; 0 = never).
     """
 
-    rate_hz: float = 20.0
+    rate_hz: float = 10.0
     publish_rate_hz: float = 2.0
     map_source: Literal["slam", "scan"] = "scan"
     pose_source: Literal["slam", "ground_truth", "odom"] = "slam"

@@ -59,7 +59,7 @@ class SlamServiceConfig:
             (0 = never).
     """
 
-    rate_hz: float = 20.0
+    rate_hz: float = 10.0
     mode: Literal["mapping", "localization"] = "mapping"
     map_file: str = ""
     initial_pose: tuple[float, ...] = ()
