@@ -66,11 +66,27 @@ def refdata() -> Path:
     return path
 
 
+#: Ports handed out by :func:`free_port`: below Linux's ephemeral range (32768–60999), from which the OS picks the
+#: local ports of outgoing connections, so no client socket takes one between the choice and the bind.
+_PORTS = range(20000, 32768)
+# Each process walks the range from its own point (a full turn before repeating), so two test runs side by side
+# do not hand out the same ports: no randomness involved.
+_next_port = _PORTS.start + (os.getpid() * 7919) % len(_PORTS)
+
+
 def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    """A TCP port on 127.0.0.1 that nothing listens on right now, outside the ephemeral range."""
+    global _next_port
+    for _ in range(len(_PORTS)):
+        port = _next_port
+        _next_port = _PORTS.start + (port + 1 - _PORTS.start) % len(_PORTS)
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise RuntimeError(f"no free TCP port in {_PORTS.start}..{_PORTS.stop - 1}")
 
 
 @pytest.fixture
