@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -31,13 +32,32 @@ def register(sub: Any) -> None:
             "in map at the end), wall_s (start-up to the end) and achieved_rtf (sim s per wall s while the robot "
             "drove). The stack runs in lockstep by default: sim time advances only when every service has finished "
             "the step that is due, so the same --seed gives the same run to the last bit on a busy or an idle "
-            "machine."
+            "machine. Any map runs: --world MAP.yaml (a ROS map, e.g. one saved with 'mjnav map save') or MAP.map "
+            "(Moving AI) is turned into a world first (as 'mjnav world from-map'; written to DIR/world.xml with "
+            "--out), with a start and a goal drawn from --seed: a random known-free cell at least 0.5 m from walls "
+            "and unknown space, and a goal 2 to 12 m away in the same connected free region, so it is reachable. "
+            "A scene without a goal (and no --goal) gets its goal drawn the same way from its start."
         ),
         epilog="Example: mjnav demo --world rooms --rtf 4 --out runs/first --record",
     )
-    p.add_argument("--world", default="rooms", help="empty, rooms, maze, warehouse or an MJCF path (default rooms)")
+    p.add_argument(
+        "--world",
+        default="rooms",
+        help="empty, rooms, maze, warehouse, an MJCF path, a ROS map .yaml or a Moving AI .map (default rooms)",
+    )
+    p.add_argument(
+        "--map-resolution",
+        type=float,
+        default=None,
+        metavar="M",
+        help="--world MAP.map: metres per Moving AI cell (default 0.5)",
+    )
     goals = p.add_mutually_exclusive_group()
-    goals.add_argument("--goal", metavar="X,Y", help="goal in the map frame, metres (default: the world's goal)")
+    goals.add_argument(
+        "--goal",
+        metavar="X,Y",
+        help="goal in the map frame, metres; negative values work (--goal -3,2) (default: the world's goal)",
+    )
     goals.add_argument("--goals", metavar="FILE", help='JSON list of goals: [[x, y], …] or [{"x": …, "y": …}, …]')
     p.add_argument(
         "--rtf",
@@ -105,31 +125,89 @@ def _parse_goals(args: argparse.Namespace, default: Any) -> list[tuple[float, fl
     return [(default.x, default.y)]
 
 
+#: World arguments that are map files, turned into a world before the run.
+MAP_SUFFIXES = (".yaml", ".yml", ".map")
+#: Distance (m) the automatically chosen start and goal keep from walls and unknown space.
+AUTO_CLEARANCE_M = 0.5
+#: Straight-line distance band (m) between the automatically chosen start and goal.
+AUTO_GOAL_DISTANCE_M = (2.0, 12.0)
+
+
+def world_from_map(map_path: str, scene: Path, seed: int, resolution_m: float | None) -> Path:
+    """Write the world of a ROS or Moving AI map to ``scene`` with a start and goal drawn from ``seed``.
+
+    Raises:
+        MapConversionError: unreadable map, or no room for the robot.
+    """
+    import numpy as np
+
+    from mjnav.sim.worldgen import write_scene_from_map
+
+    lo, hi = AUTO_GOAL_DISTANCE_M
+    summary = write_scene_from_map(
+        map_path,
+        scene,
+        resolution_m=resolution_m,
+        clearance_m=AUTO_CLEARANCE_M,
+        rng=np.random.default_rng(seed),
+        min_distance_m=lo,
+        max_distance_m=hi,
+    )
+    return summary.path
+
+
+def reachable_goal(info: Any, seed: int) -> Any:
+    """A goal drawn from ``seed`` that the robot can reach from the world's start on its true static map.
+
+    Raises:
+        MapConversionError: no free cell with the clearance is reachable from the start.
+    """
+    import numpy as np
+
+    from mjnav.sim.truth import true_grid
+    from mjnav.sim.worldgen import GridMap, choose_goal
+
+    occupied, frame = true_grid(info.path)
+    grid = GridMap(occupied, frame.resolution_m, (frame.origin_m[0], frame.origin_m[1], 0.0), info.name)
+    lo, hi = AUTO_GOAL_DISTANCE_M
+    rng = np.random.default_rng(seed)
+    return choose_goal(grid, info.start, AUTO_CLEARANCE_M, rng, min_distance_m=lo, max_distance_m=hi)
+
+
 def run(args: argparse.Namespace) -> int:
     """``mjnav demo``."""
-    from mjnav.bus import Bus, BusConfig, BusConfigError
-    from mjnav.bus.acl import AclError
-    from mjnav.bus.config import tls_files
-    from mjnav.msgs.topics import OPERATOR
     from mjnav.runtime.config import ConfigError
-    from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
     from mjnav.runtime.stack import add_service_overrides, load_stack
+    from mjnav.sim.errors import SimError
     from mjnav.sim.worlds import world_info
 
     setup_logging(args.log_level)
+    scratch: tempfile.TemporaryDirectory[str] | None = None
     try:
-        info = world_info(args.world)
-        goals = _parse_goals(args, info.goal)
+        out = Path(args.out) if args.out else None
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+        world: str | Path = args.world
+        if Path(args.world).suffix.lower() in MAP_SUFFIXES:
+            folder = out
+            if folder is None:
+                scratch = tempfile.TemporaryDirectory(prefix="mjnav-demo-")
+                folder = Path(scratch.name)
+            world = world_from_map(args.world, folder / "world.xml", args.seed, args.map_resolution)
+        elif args.map_resolution is not None:
+            raise ValueError("--map-resolution applies to a Moving AI --world MAP.map only")
+        info = world_info(world)
+        default_goal = info.goal
+        if default_goal is None and not (args.goal or args.goals):
+            default_goal = reachable_goal(info, args.seed)
+        goals = _parse_goals(args, default_goal)
         if any(not (math.isfinite(x) and math.isfinite(y)) for x, y in goals):
             raise ValueError("goals must be finite numbers")
         rtf = 0.0 if args.rtf.strip().lower() == "max" else float(args.rtf)
         if not (math.isfinite(rtf) and rtf >= 0):
             raise ValueError(f"--rtf must be a positive number or 'max', got {args.rtf!r}")
         stack = load_stack(args.stack)
-        out = Path(args.out) if args.out else None
-        if out is not None:
-            out.mkdir(parents=True, exist_ok=True)
         overrides: dict[str, list[str]] = {"sim": [f"world={json.dumps(str(info.path))}", f"rtf={rtf}"]}
         if args.record is not None:
             video = Path(args.record) if args.record else (out / "video.mp4" if out else None)
@@ -141,9 +219,33 @@ def run(args: argparse.Namespace) -> int:
         if out is not None and "viz" in stack.names():
             overrides.setdefault("viz", []).append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
         add_service_overrides(stack, args.set, overrides)
-    except (ConfigError, ValueError, OSError, LookupError) as exc:  # LookupError: an unknown world
+    except (ConfigError, ValueError, OSError, LookupError, SimError) as exc:  # LookupError: an unknown world
         print(f"mjnav demo: {exc}", file=sys.stderr)
+        if scratch is not None:
+            scratch.cleanup()
         return 2
+    try:
+        return _run(args, stack, overrides, info, goals, rtf, out)
+    finally:
+        if scratch is not None:
+            scratch.cleanup()
+
+
+def _run(
+    args: argparse.Namespace,
+    stack: Any,
+    overrides: dict[str, list[str]],
+    info: Any,
+    goals: list[tuple[float, float]],
+    rtf: float,
+    out: Path | None,
+) -> int:
+    from mjnav.bus import Bus, BusConfig, BusConfigError
+    from mjnav.bus.acl import AclError
+    from mjnav.bus.config import tls_files
+    from mjnav.msgs.topics import OPERATOR
+    from mjnav.runtime.config import ConfigError
+    from mjnav.runtime.launcher import Launcher
 
     wall0 = time.monotonic()
     try:

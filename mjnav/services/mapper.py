@@ -42,10 +42,12 @@ class MapperConfig:
         map_source: ``slam`` (static layer from SLAM's ``map``) or ``scan`` (a log-odds map of its own).
         pose_source: ``slam`` (SLAM's ``pose``), ``ground_truth`` (true pose) or ``odom`` (drifting).
         obstacle_range_m: the obstacle layer marks the newest scan's returns up to this range (slam mode).
-        width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)).
-        laser_offset_m: lidar position in base_link (x, y), metres.
+        width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)); ``mjnav
+            up`` sizes it to the sim's world (:meth:`mjnav.runtime.launcher.Launcher._settings_from_world`).
+        laser_offset_m: lidar position in base_link (x, y), metres (``mjnav up``: the robot model's lidar site).
         max_range_m: readings at or beyond this are "no return" (free up to it).
-        robot_radius_m: inscribed radius for the costmap's lethal inflation.
+        robot_radius_m: inscribed radius for the costmap's lethal inflation (``mjnav up``: the robot model's
+            footprint radius).
         inflation_radius_m: cost decays to 0 at this distance from obstacles.
         cost_scaling_factor: exponential decay rate of the cost, 1/m.
         prior_map: ROS map YAML to start from ("" = unknown everywhere; its grid replaces width/height/origin).
@@ -66,7 +68,7 @@ class MapperConfig:
     origin_m: tuple[float, float] = (-10.0, -10.0)
     laser_offset_m: tuple[float, float] = (0.0, 0.0)
     max_range_m: float = 12.0
-    robot_radius_m: float = 0.2
+    robot_radius_m: float = 0.19
     inflation_radius_m: float = 0.7
     cost_scaling_factor: float = 5.0
     prior_map: str = ""

@@ -61,7 +61,6 @@ class SimConfig:
             moving bodies publish none.
         watchdog_timeout_s: zero the wheels when the newest command is this old (sim seconds).
         teleop_timeout_s: ``cmd_vel_teleop`` overrides ``cmd_vel`` until it has been silent this long (sim seconds).
-        lidar_beams, lidar_rate_hz, lidar_range_min_m, lidar_range_max_m, lidar_noise_std_m: the lidar.
         record_path: write an MP4 of the run here ("" = no recording).
         record_fps: video frame rate (frames per sim second).
         record_camera: ``top`` or ``follow``.
@@ -85,11 +84,6 @@ class SimConfig:
     obstacles_rate_hz: float = 10.0
     watchdog_timeout_s: float = 0.5
     teleop_timeout_s: float = 0.5
-    lidar_beams: int = 360
-    lidar_rate_hz: float = 10.0
-    lidar_range_min_m: float = 0.12
-    lidar_range_max_m: float = 12.0
-    lidar_noise_std_m: float = 0.01
     record_path: str = ""
     record_fps: float = 30.0
     record_camera: str = "top"
@@ -171,7 +165,8 @@ class SimBridge:
         self._status = _Every(SIM_STATUS_RATE_HZ)
         self._sim_status = msg_class("mjnav_msgs/msg/SimStatus")
         self.wall0 = time.monotonic()
-        self._scan_time_s = 1.0 / config.lidar_rate_hz
+        lidar = sim.lidar_config
+        self._scan_time_s = 1.0 / lidar.rate_hz if lidar is not None else math.inf
         self.commands_applied = 0
 
     @property
@@ -285,17 +280,10 @@ class SimService(Service[SimConfig]):
     uses_sim_time = False
 
     def configure(self) -> None:
-        from mjnav.sim import LidarConfig, Recorder, SimRunner, Simulator
+        from mjnav.sim import Recorder, SimRunner, Simulator
         from mjnav.sim.odometry import OdometryConfig
 
         cfg = self.config
-        lidar = LidarConfig(
-            num_beams=cfg.lidar_beams,
-            rate_hz=cfg.lidar_rate_hz,
-            range_min_m=cfg.lidar_range_min_m,
-            range_max_m=cfg.lidar_range_max_m,
-            noise_std_m=cfg.lidar_noise_std_m,
-        )
         base = OdometryConfig()
         k = cfg.odom_noise_scale
         odometry = replace(
@@ -304,9 +292,7 @@ class SimService(Service[SimConfig]):
             wheel_separation_error_std=k * base.wheel_separation_error_std,
             slip_noise_std=k * base.slip_noise_std,
         )
-        self.sim = Simulator(
-            cfg.world, seed=cfg.seed, lidar=lidar, odometry=odometry, watchdog_timeout_s=cfg.watchdog_timeout_s
-        )
+        self.sim = Simulator(cfg.world, seed=cfg.seed, odometry=odometry, watchdog_timeout_s=cfg.watchdog_timeout_s)
         self.bridge = SimBridge(self.sim, self.bus, cfg)
         self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
         self.bridge.attach(self.runner)

@@ -64,6 +64,35 @@ def static_occupancy(model: mujoco.MjModel, data: mujoco.MjData, frame: GridFram
     return occupied.reshape(h, w)
 
 
+def true_grid(
+    world: str | Path, resolution_m: float = 0.1, border_m: float = 1.0
+) -> tuple[NDArray[np.bool_], GridFrame]:
+    """The world's true static occupancy on a grid covering its static obstacles and its start, with a border.
+
+    Args:
+        world: bundled world name or MJCF path.
+        resolution_m: cell size, metres.
+        border_m: free margin around the obstacles' bounds (and the start), metres.
+
+    Returns:
+        ``(occupied, frame)``: (H, W) bool, True inside a static obstacle's footprint; the grid's placement.
+    """
+    from mjnav.sim.simulator import Simulator
+    from mjnav.sim.worlds import world_info
+
+    info = world_info(world)
+    sim = Simulator(info.path, lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    xs, ys = [info.start.x], [info.start.y]
+    if info.bounds_m is not None:
+        xs += [info.bounds_m[0], info.bounds_m[2]]
+        ys += [info.bounds_m[1], info.bounds_m[3]]
+    x0, y0 = min(xs) - border_m, min(ys) - border_m
+    shape = (math.ceil((max(ys) + border_m - y0) / resolution_m), math.ceil((max(xs) + border_m - x0) / resolution_m))
+    frame = GridFrame(resolution_m, (x0, y0), shape)
+    return static_occupancy(sim.model, sim.data, frame), frame
+
+
 def shortest_length_m(
     world: str | Path, start_xy: tuple[float, float], goal_xy: tuple[float, float], *, resolution_m: float = 0.05
 ) -> float:
