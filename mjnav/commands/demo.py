@@ -28,7 +28,9 @@ def register(sub: Any) -> None:
             "send the goal(s), and end with a summary. The robot starts with an unknown map. Exit code 0 only when "
             "every goal was reached. With --json the last stdout line is the summary as JSON: reached, collisions, "
             "time_s (sim), path_length_m (driven), optimal_length_m (shortest collision-free path for the robot's "
-            "radius on the true map), v_max_mps, min_clearance_m, seed, lockstep, final_pose ([x, y, yaw] true pose "
+            "radius on the true map), v_max_mps, min_clearance_m (smallest distance between the robot's footprint, "
+            "the disc of its radius, and the world's static obstacles at the true poses; negative = overlap, "
+            "counted in collisions as well as the sim's contacts), seed, lockstep, final_pose ([x, y, yaw] true pose "
             "in map at the end), wall_s (start-up to the end) and achieved_rtf (sim s per wall s while the robot "
             "drove). The stack runs in lockstep by default: sim time advances only when every service has finished "
             "the step that is due, so the same --seed gives the same run to the last bit on a busy or an idle "
@@ -304,7 +306,10 @@ def _mission(
     from mjnav.runtime.mission import MissionClient, MissionSummary
 
     log = sys.stderr
-    client = MissionClient(bus, name=MISSION, initial_pose=info.start)  # the operator's initialpose
+    from mjnav.sim.truth import FootprintClearance
+
+    footprint = FootprintClearance(info.path)  # scoring only: the true static map
+    client = MissionClient(bus, name=MISSION, initial_pose=info.start, clearance=footprint.clearance_m)
     if not wait_until(lambda: set(services) <= set(bus.alive_services(0.5)), 180.0):
         raise RuntimeError(f"services did not come up within 180 s (alive: {bus.alive_services(0.5)})")
     v_max = math.nan
@@ -324,7 +329,6 @@ def _mission(
             file=log,
         )
     optimal = _optimal_length(info, outcomes)
-    radius = _robot_radius(info)
     pose = client.final_pose
     loops: int | None = None
     if "slam" in services:
@@ -335,12 +339,12 @@ def _mission(
     accuracy = _map_accuracy(info, client.map.latest())
     return MissionSummary(
         reached=len(outcomes) == len(goals) and all(o.result == "reached" for o in outcomes),
-        collisions=client.collisions(),
+        collisions=max(client.collisions(), client.overlaps()),  # an overlap counts even without a contact
         time_s=sum(o.time_s for o in outcomes),
         path_length_m=sum(o.path_length_m for o in outcomes),
         optimal_length_m=optimal,
         v_max_mps=v_max,
-        min_clearance_m=client.min_range_m() - radius,
+        min_clearance_m=client.min_clearance_m(),
         goals=[o.__dict__ for o in outcomes],
         final_pose=None if pose is None else [pose.x, pose.y, pose.theta],
         achieved_rtf=client.achieved_rtf,
@@ -360,12 +364,6 @@ def _map_accuracy(info: Any, msg: Any) -> list[float] | None:
         return None
     cells, frame = ros.grid_frame(msg)
     return list(map_accuracy(info.path, cells, frame))
-
-
-def _robot_radius(info: Any) -> float:
-    from mjnav.sim import Simulator
-
-    return float(Simulator(info.path, lidar=None).robot_radius_m)
 
 
 def _optimal_length(info: Any, outcomes: list[Any]) -> float:

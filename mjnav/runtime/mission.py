@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -54,6 +55,9 @@ class _Track:
     length_m: float = 0.0
     last: Pose2D | None = None
     min_range_m: float = math.inf
+    min_clearance_m: float = math.inf  # footprint-to-obstacle distance at the true poses (with a clearance model)
+    overlaps: int = 0  # times the footprint went from clear to overlapping an obstacle
+    overlapping: bool = False
     statuses: list[Any] = field(default_factory=list)
     truth: PoseHistory = field(default_factory=lambda: PoseHistory(horizon_s=2.0))
     ate_sq_sum: float = 0.0  # Σ |estimated − true position|², over every estimate received while measuring
@@ -98,9 +102,14 @@ class MissionClient(LockstepParticipant):
         period_s: float = 0.05,
         initial_pose: Pose2D | None = None,
         initial_sigma: tuple[float, float] = (0.05, 0.05),
+        clearance: Callable[[float, float], float] | None = None,
     ) -> None:
         """``initial_pose``: sent on ``initialpose`` (σ ``initial_sigma`` = (m, rad)) in the client's first step,
-        before the first goal, as an operator tells the robot where it starts (what SLAM starts from)."""
+        before the first goal, as an operator tells the robot where it starts (what SLAM starts from).
+        ``clearance``: footprint-to-obstacle distance (m) of the robot at a true position (x, y), e.g.
+        :meth:`mjnav.sim.truth.FootprintClearance.clearance_m`; evaluated at every ``truth`` pose while goals run
+        (:meth:`min_clearance_m`, :meth:`overlaps`)."""
+        self._clearance = clearance
         self._init_participant(bus, name, period_s)
         self._initial: Any = None
         if initial_pose is not None:
@@ -133,6 +142,12 @@ class MissionClient(LockstepParticipant):
             if t.last is not None and t.measuring:
                 t.length_m += t.last.distance_to(pose)
             t.last = pose
+            if self._clearance is not None and t.measuring:
+                c = self._clearance(pose.x, pose.y)
+                t.min_clearance_m = min(t.min_clearance_m, c)
+                if c < 0.0 and not t.overlapping:
+                    t.overlaps += 1
+                t.overlapping = c < 0.0
 
     def _on_estimate(self, msg: Any) -> None:
         """Absolute trajectory error of SLAM's ``pose`` against the true pose at its stamp."""
@@ -178,6 +193,18 @@ class MissionClient(LockstepParticipant):
         """Smallest valid lidar range seen while goals ran, metres (inf when none)."""
         with self._lock:
             return self._track.min_range_m
+
+    def min_clearance_m(self) -> float:
+        """Smallest footprint-to-obstacle distance at the true poses received while goals ran, metres (NaN without
+        a ``clearance`` model or before any pose); negative: the footprint overlapped an obstacle."""
+        with self._lock:
+            c = self._track.min_clearance_m
+            return c if math.isfinite(c) else math.nan
+
+    def overlaps(self) -> int:
+        """How many times the footprint went from clear to overlapping an obstacle while goals ran."""
+        with self._lock:
+            return self._track.overlaps
 
     def collisions(self) -> int:
         """Collisions counted by the sim: while goals run, so far; after, at the end of the last goal (0 before
