@@ -93,6 +93,8 @@ class MapperService(Service[MapperConfig]):
 
     name = "mapper"
     config_class = MapperConfig
+    #: Read from ``self.config`` at every use: ``mjnav param set mapper KEY VALUE`` changes them while running.
+    runtime_settable = frozenset({"inflation_radius_m", "cost_scaling_factor", "publish_rate_hz", "obstacle_range_m"})
 
     def configure(self) -> None:
         cfg = self.config

@@ -126,6 +126,8 @@ class PlannerService(Service[PlannerConfig]):
 
     name = "planner"
     config_class = PlannerConfig
+    #: Read from ``self.config`` at every use: ``mjnav param set planner KEY VALUE`` changes them while running.
+    runtime_settable = frozenset({"algorithm", "heuristic", "cost_weight", "unknown_cost", "replan_period_s"})
 
     def configure(self) -> None:
         # Goals, cancels and accepted navigate requests, in arrival order: ("goal", msg, id or 0) / ("cancel", …).
