@@ -85,7 +85,12 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--headless", action="store_true", help="open no browser or window")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on the last stdout line")
-    p.add_argument("--out", metavar="DIR", help="write summary.json, the final map (PGM + YAML) and the video here")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write summary.json, the final map (map.yaml + map.pgm), run.png (map, true and estimated trajectories, "
+        "plans, path, goals), speed.png (commanded and measured speed over sim time), scene.html and the video here",
+    )
     p.add_argument(
         "--timeout", type=float, default=240.0, metavar="S", help="sim seconds allowed per goal (default 240)"
     )
@@ -248,6 +253,7 @@ def _run(
     from mjnav.msgs.topics import OPERATOR
     from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
+    from mjnav.runtime.trace import TraceRecorder
 
     wall0 = time.monotonic()
     try:
@@ -275,9 +281,12 @@ def _run(
     thread = threading.Thread(target=lambda: codes.append(launcher.run(install_signals=False)), daemon=True)
     thread.start()
     summary = None
+    trace = None
     try:
         with Bus.open(bus_config, stack.namespace) as bus:
+            recorder = TraceRecorder(bus) if out is not None else None
             summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
+            trace = recorder.trace() if recorder is not None else None
             summary.seed = args.seed
             summary.lockstep = not args.free_running
             summary.wall_s = time.monotonic() - wall0
@@ -293,6 +302,8 @@ def _run(
     data = summary.to_dict()
     if out is not None:
         (out / "summary.json").write_text(jsonsafe.dumps(data, indent=2) + "\n", encoding="utf-8")
+        if trace is not None:
+            _plots(trace, goals, info.name, out)
     _print_summary(data, out)
     if args.json:
         print(jsonsafe.dumps(data))
@@ -377,6 +388,17 @@ def _optimal_length(info: Any, outcomes: list[Any]) -> float:
         return math.nan
 
 
+def _plots(trace: Any, goals: list[tuple[float, float]], world: str, out: Path) -> None:
+    """Write ``run.png`` and ``speed.png`` (matplotlib, the ``plot`` extra; without it, say so and go on)."""
+    try:
+        from mjnav.viz.plots import plot_run, plot_speed
+    except ImportError as exc:
+        print(f"mjnav demo: no plots ({exc}); install the plot extra: pip install 'mjnav[plot]'", file=sys.stderr)
+        return
+    plot_run(trace, out / "run.png", goals, title=f"{world}: true (solid) and estimated (dashed) trajectories")
+    plot_speed(trace, out / "speed.png", title=f"{world}: speed")
+
+
 def _print_summary(data: dict[str, Any], out: Path | None) -> None:
     lines = [
         f"reached: {data['reached']}   collisions: {data['collisions']}",
@@ -386,6 +408,7 @@ def _print_summary(data: dict[str, Any], out: Path | None) -> None:
         f"   map accuracy (recall, precision): {data['map_accuracy']}",
     ]
     if out is not None:
-        extra = "".join(f", {name}" for name in ("video.mp4", "scene.html") if (out / name).exists())
+        names = ("run.png", "speed.png", "video.mp4", "scene.html", "world.xml")
+        extra = "".join(f", {name}" for name in names if (out / name).exists())
         lines.append(f"files in {out}: summary.json, map.yaml + map.pgm{extra}")
     print("\n".join(lines), file=sys.stderr)

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from mjnav.sim.truth import FootprintClearance, shortest_length_m
@@ -70,6 +71,23 @@ def test_den312d_runs_end_to_end(refdata: Path, tmp_path: Path) -> None:
     bounds = world_info(scene).bounds_m
     assert bounds is not None and bounds[2] - bounds[0] > 30.0 and bounds[3] - bounds[1] > 40.0
     _check_run(summary, scene)
+    _check_plots(out)
+
+
+def _check_plots(out: Path) -> None:
+    """run.png shows the driven trajectory and the goal, speed.png the commanded and measured speeds: counted in
+    their colours (tests/viz/test_plots.py checks where they land)."""
+    from PIL import Image
+
+    from mjnav.viz.plots import COMMANDED_COLOUR, GOAL_COLOUR, MEASURED_COLOUR, TRUE_COLOUR
+
+    def count(name: str, colour: tuple[int, int, int]) -> int:
+        img = np.asarray(Image.open(out / name).convert("RGB")).astype(int)
+        return int((np.abs(img - np.array(colour)).max(axis=-1) <= 10).sum())
+
+    assert count("run.png", TRUE_COLOUR) > 300  # ~9 m of a 3.5 px line at ~15 px/m
+    assert count("run.png", GOAL_COLOUR) > 100  # the star at the goal (and the legend's)
+    assert count("speed.png", COMMANDED_COLOUR) > 150 and count("speed.png", MEASURED_COLOUR) > 150
 
 
 def test_a_saved_rooms_map_runs_end_to_end(tmp_path: Path) -> None:
