@@ -28,6 +28,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
@@ -63,7 +65,9 @@ class SimConfig:
         teleop_timeout_s: ``cmd_vel_teleop`` overrides ``cmd_vel`` until it has been silent this long (sim seconds).
         record_path: write an MP4 of the run here ("" = no recording).
         record_fps: video frame rate (frames per sim second).
-        record_camera: ``top`` or ``follow``.
+        record_camera: ``follow`` (a chase camera behind the robot, the default) or ``top`` (the whole world).
+            Either way the video shows the map, plan, path, goal and driven trail over the world
+            (:class:`mjnav.sim.recording.Overlay`).
         lockstep: advance only when every participant finished its due step (False: free-running on wall time).
         lockstep_participants: participants that must be present before sim time starts (``mjnav up`` fills in the
             stack's sim-time services, ``mjnav demo`` adds its mission client).
@@ -86,7 +90,7 @@ class SimConfig:
     teleop_timeout_s: float = 0.5
     record_path: str = ""
     record_fps: float = 30.0
-    record_camera: str = "top"
+    record_camera: str = "follow"
     lockstep: bool = True
     lockstep_participants: tuple[str, ...] = ()
     lockstep_timeout_s: float = 10.0
@@ -279,6 +283,24 @@ class SimService(Service[SimConfig]):
     config_class = SimConfig
     uses_sim_time = False
 
+    def _record_frame(self, sim: Any) -> None:
+        """Runner hook: refresh the video's overlay from the newest navigation messages, then capture a frame."""
+        ov = self.recorder.overlay
+        subs = self._overlay_subs
+        grid = subs["map"].take()
+        if grid is not None:
+            cells, frame = ros.grid_frame(grid)
+            ov.set_map(cells, frame.origin_m, frame.resolution_m)
+        for name in ("plan", "path"):
+            msg = subs[name].take()
+            if msg is not None:
+                pts = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+                setattr(ov, name, np.asarray(pts, dtype=np.float64).reshape(-1, 2))
+        for status in subs["goal_status"].drain():
+            position = status.goal.pose.position
+            ov.goal = (float(position.x), float(position.y))
+        self.recorder.capture()
+
     def configure(self) -> None:
         from mjnav.sim import Recorder, SimRunner, Simulator
         from mjnav.sim.odometry import OdometryConfig
@@ -304,9 +326,16 @@ class SimService(Service[SimConfig]):
         self.recorder: Any = None
         if cfg.record_path:
             self.recorder = Recorder(
-                self.sim.model, self.sim.data, Path(cfg.record_path), fps=cfg.record_fps, camera=cfg.record_camera
+                self.sim.model,
+                self.sim.data,
+                Path(cfg.record_path),
+                fps=cfg.record_fps,
+                camera=cfg.record_camera,
+                track_body=self.sim.robot.root_body,
             )
-            self.recorder.add_to(self.runner)
+            # What navigation knows goes into the video: the map, the plan, the path, the goal (and the trail).
+            self._overlay_subs = {name: self.bus.subscribe(name) for name in ("map", "plan", "path", "goal_status")}
+            self.runner.add_hook(self._record_frame, 1.0 / cfg.record_fps)
         start: Pose2D = self.sim.start_pose
         self.log.info(
             "world %s, start (%.2f, %.2f, %.2f), rtf %s, %s",
