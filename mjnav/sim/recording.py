@@ -52,10 +52,12 @@ OVERLAY_RGBA = {
     "trail": (0.12, 0.47, 0.95, 1.0),
 }
 _OVERLAY_Z = {"map": 0.003, "plan": 0.012, "path": 0.016, "goal": 0.02, "trail": 0.008}
-#: Scene geoms kept for the overlay beyond the model's own (the map's squares are merged to fit).
-OVERLAY_GEOMS = 6000
+#: Scene geoms kept for the overlay beyond the model's own.
+OVERLAY_GEOMS = 2000
 #: The trail gets a point when the tracked body moved this far from the last one, metres.
-TRAIL_SPACING_M = 0.05
+TRAIL_SPACING_M = 0.1
+#: Plan, path and trail are drawn with at most this many segments each (evenly decimated).
+POLYLINE_SEGMENTS = 80
 
 
 @dataclass
@@ -63,34 +65,38 @@ class Overlay:
     """Navigation state drawn into the video (map frame, metres).
 
     Attributes:
-        occupied: (K, 2) centres of the map's occupied cells, or None.
-        cell_m: edge of one occupied square, metres.
+        boxes: (K, 4) the map's occupied cells merged into rectangles: centre x, y and half sizes, metres.
         plan: (N, 2) raw plan, or None.
         path: (M, 2) smoothed path, or None.
         goal: (x, y) of the goal, or None.
         trail: driven trail, extended by :meth:`Recorder.render` from the tracked body.
     """
 
-    occupied: NDArray[np.float64] | None = None
-    cell_m: float = 0.05
+    boxes: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
     plan: NDArray[np.float64] | None = None
     path: NDArray[np.float64] | None = None
     goal: tuple[float, float] | None = None
     trail: list[tuple[float, float]] = field(default_factory=list)
 
     def set_map(self, occupancy: NDArray[np.int8], origin_m: tuple[float, float], resolution_m: float) -> None:
-        """Take the occupied cells (value >= 65) of an (H, W) occupancy grid; merged into coarser squares when
-        there are more than the overlay's budget."""
-        occ = np.asarray(occupancy) >= 65
-        factor = 1
-        while int(occ.sum()) > OVERLAY_GEOMS // 2 and min(occ.shape) > 1:
-            h, w = occ.shape
-            occ = np.asarray(occ[: h - h % 2, : w - w % 2].reshape(h // 2, 2, w // 2, 2).any(axis=(1, 3)))
-            factor *= 2
-        rows, cols = np.nonzero(occ)
-        cell = resolution_m * factor
-        self.occupied = np.column_stack((origin_m[0] + (cols + 0.5) * cell, origin_m[1] + (rows + 0.5) * cell))
-        self.cell_m = cell
+        """Take the occupied cells (value >= 65) of an (H, W) occupancy grid (row 0 = lowest y), merged into few
+        rectangles (:func:`mjnav.sim.worldgen.merge_rectangles`)."""
+        from mjnav.sim.worldgen import merge_rectangles
+
+        rects = merge_rectangles(np.asarray(occupancy) >= 65).astype(np.float64)[: OVERLAY_GEOMS // 2]
+        r, c, nr, nc = rects.T
+        self.boxes = np.column_stack(
+            (origin_m[0] + (c + 0.5 * nc) * resolution_m, origin_m[1] + (r + 0.5 * nr) * resolution_m,
+             0.5 * nc * resolution_m, 0.5 * nr * resolution_m)
+        )  # fmt: skip
+
+
+def _decimate(xy: Any, max_segments: int) -> NDArray[np.float64]:
+    """At most ``max_segments`` + 1 points of a polyline, evenly picked, first and last kept."""
+    pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if len(pts) <= max_segments + 1:
+        return pts
+    return pts[np.unique(np.linspace(0, len(pts) - 1, max_segments + 1).round().astype(int))]
 
 
 def _gl_context(backend: str, width: int, height: int) -> Any:
@@ -293,8 +299,8 @@ class Recorder:
         geom.category = mujoco.mjtCatBit.mjCAT_DECOR
         return geom
 
-    def _polyline(self, kind: str, xy: Any, width_m: float) -> None:
-        pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    def _polyline(self, kind: str, xy: Any, width_px: float) -> None:
+        pts = _decimate(xy, POLYLINE_SEGMENTS)
         z = _OVERLAY_Z[kind]
         for a, b in itertools.pairwise(pts):
             if not np.any(a != b):
@@ -302,7 +308,7 @@ class Recorder:
             geom = self._add_geom(kind)
             if geom is None:
                 return
-            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, 0.5 * width_m, (a[0], a[1], z), (b[0], b[1], z))
+            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, width_px, (a[0], a[1], z), (b[0], b[1], z))
 
     def _draw_overlay(self) -> None:
         """Append the overlay's geoms to the scene (after ``mjv_updateScene``); the trail grows from the tracked
@@ -311,19 +317,17 @@ class Recorder:
         x, y = (float(v) for v in self.data.xpos[self._track][:2])
         if not ov.trail or math.dist(ov.trail[-1], (x, y)) >= TRAIL_SPACING_M:
             ov.trail.append((x, y))
-        if ov.occupied is not None:
-            half = np.array([0.5 * ov.cell_m, 0.5 * ov.cell_m, 0.002])
-            for cx, cy in ov.occupied:
-                geom = self._add_geom("map")
-                if geom is None:
-                    break
-                geom.size[:] = half
-                geom.pos[:] = (cx, cy, _OVERLAY_Z["map"])
-        self._polyline("trail", ov.trail, 0.08)
+        for cx, cy, hx, hy in ov.boxes:
+            geom = self._add_geom("map")
+            if geom is None:
+                break
+            geom.size[:] = (hx, hy, 0.002)
+            geom.pos[:] = (cx, cy, _OVERLAY_Z["map"])
+        self._polyline("trail", ov.trail, 4.0)  # lines: widths in pixels, cheap to render
         if ov.plan is not None:
-            self._polyline("plan", ov.plan, 0.06)
+            self._polyline("plan", ov.plan, 3.0)
         if ov.path is not None:
-            self._polyline("path", ov.path, 0.06)
+            self._polyline("path", ov.path, 3.0)
         if ov.goal is not None:
             geom = self._add_geom("goal")
             if geom is not None:
