@@ -73,7 +73,7 @@ def _save(fig: Any, ax: Any, out: Path) -> PixelMap:
 
 
 def plot_run(trace: RunTrace, out: str | Path, goals: Sequence[tuple[float, float]] = (), title: str = "") -> PixelMap:
-    """Draw the run on its map: grey map (white free, black occupied, light grey unknown), true trajectory
+    """Draw the run on its map: grey map (white free ≤ 25, black occupied ≥ 65, light grey unknown), true trajectory
     (solid), SLAM's estimate (dashed), every plan (thin, the newest thicker), the newest smoothed path, goals
     (stars) and the start (circle). Axes in metres, equal aspect.
 
@@ -89,7 +89,9 @@ def plot_run(trace: RunTrace, out: str | Path, goals: Sequence[tuple[float, floa
     fig, ax = _figure((8.0, 8.0))
     if trace.occupancy is not None:
         occ = trace.occupancy.astype(np.float64)
-        shade = np.where(occ < 0, 0.85, 1.0 - np.clip(occ, 0, 100) / 100.0)
+        # Like map_server's trinary reading: free (<= 25) white, occupied (>= 65) black, grey between; unknown.
+        known = np.where(occ >= 65, 0.0, np.where(occ <= 25, 1.0, 1.0 - occ / 100.0))
+        shade = np.where(occ < 0, 0.85, known)
         h, w = occ.shape
         x0, y0 = trace.map_origin_m
         res = trace.map_resolution_m

@@ -54,7 +54,7 @@ def _check_run(summary: dict[str, Any], scene: Path) -> None:
     assert summary["min_clearance_m"] > 0.0
     optimal = shortest_length_m(scene, (info.start.x, info.start.y), (goal.x, goal.y))
     assert summary["optimal_length_m"] == pytest.approx(optimal, abs=1e-4)  # the summary rounds to 0.1 mm
-    assert optimal <= summary["path_length_m"] <= 1.25 * optimal
+    assert optimal - 0.15 <= summary["path_length_m"] <= 1.25 * optimal  # it may stop 0.1 m short (goal tolerance)
     assert summary["time_s"] <= 1.25 * optimal / summary["v_max_mps"] + 15.0  # sim seconds
     final = summary["final_pose"]
     assert math.dist(final[:2], (goal.x, goal.y)) < 0.3
