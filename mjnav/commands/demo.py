@@ -174,9 +174,9 @@ def reachable_goal(info: Any, seed: int) -> Any:
     from mjnav.sim.truth import true_grid
     from mjnav.sim.worldgen import GridMap, choose_goal
 
-    occupied, frame = true_grid(info.path)
-    grid = GridMap(occupied, frame.resolution_m, (frame.origin_m[0], frame.origin_m[1], 0.0), info.name)
     lo, hi = AUTO_GOAL_DISTANCE_M
+    occupied, frame = true_grid(info.path, border_m=1.0 if info.bounds_m is not None else hi)  # open world: room
+    grid = GridMap(occupied, frame.resolution_m, (frame.origin_m[0], frame.origin_m[1], 0.0), info.name)
     rng = np.random.default_rng(seed)
     return choose_goal(grid, info.start, AUTO_CLEARANCE_M, rng, min_distance_m=lo, max_distance_m=hi)
 
