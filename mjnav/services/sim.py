@@ -335,6 +335,7 @@ class SimService(Service[SimConfig]):
             )
             # What navigation knows goes into the video: the map, the plan, the path, the goal (and the trail).
             self._overlay_subs = {name: self.bus.subscribe(name) for name in ("map", "plan", "path", "goal_status")}
+            self.recorder.overlay.track_trail = True
             self.runner.add_hook(self._record_frame, 1.0 / cfg.record_fps)
         start: Pose2D = self.sim.start_pose
         self.log.info(

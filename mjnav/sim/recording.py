@@ -69,7 +69,9 @@ class Overlay:
         plan: (N, 2) raw plan, or None.
         path: (M, 2) smoothed path, or None.
         goal: (x, y) of the goal, or None.
-        trail: driven trail, extended by :meth:`Recorder.render` from the tracked body.
+        trail: driven trail, extended by :meth:`Recorder.render` from the tracked body when ``track_trail``.
+        track_trail: record and draw the tracked body's trail (off by default: a flying body's trail would lie on
+            the floor).
     """
 
     boxes: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
@@ -77,6 +79,7 @@ class Overlay:
     path: NDArray[np.float64] | None = None
     goal: tuple[float, float] | None = None
     trail: list[tuple[float, float]] = field(default_factory=list)
+    track_trail: bool = False
 
     def set_map(self, occupancy: NDArray[np.int8], origin_m: tuple[float, float], resolution_m: float) -> None:
         """Take the occupied cells (value >= 65) of an (H, W) occupancy grid (row 0 = lowest y), merged into few
@@ -314,9 +317,10 @@ class Recorder:
         """Append the overlay's geoms to the scene (after ``mjv_updateScene``); the trail grows from the tracked
         body's position."""
         ov = self.overlay
-        x, y = (float(v) for v in self.data.xpos[self._track][:2])
-        if not ov.trail or math.dist(ov.trail[-1], (x, y)) >= TRAIL_SPACING_M:
-            ov.trail.append((x, y))
+        if ov.track_trail:
+            x, y = (float(v) for v in self.data.xpos[self._track][:2])
+            if not ov.trail or math.dist(ov.trail[-1], (x, y)) >= TRAIL_SPACING_M:
+                ov.trail.append((x, y))
         for cx, cy, hx, hy in ov.boxes:
             geom = self._add_geom("map")
             if geom is None:
