@@ -88,10 +88,14 @@ def test_param_set_changes_a_running_service_and_validates(
     assert nobody.returncode == 3 and "nobody answered on robot0/config/planner" in nobody.stderr
 
 
-def test_param_and_map_save_without_a_router_fail_clearly() -> None:
+def test_bus_commands_without_a_router_fail_clearly() -> None:
+    nowhere = ("--connect", f"tcp/127.0.0.1:{free_port()}")
     for args in (["param", "get", "mapper"], ["map", "save", "x.yaml"]):
-        res = _cli(*args, "--connect", f"tcp/127.0.0.1:{free_port()}")
+        res = _cli(*args, *nowhere)
         assert res.returncode == 3 and "no Zenoh router reachable" in res.stderr, res.stderr
+    for args in (["topics", "--duration", "1"], ["echo", "/robot0/goal_status", "--count", "1"]):
+        res = _cli(*args, *nowhere)  # at once, not after a wait for nothing
+        assert res.returncode == 1 and "no Zenoh router reachable" in res.stderr, res.stderr
 
 
 def test_map_save_writes_inside_the_mappers_folder(
