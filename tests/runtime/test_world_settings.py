@@ -76,3 +76,17 @@ def test_the_lidar_is_read_from_the_robot_model(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="whole number"):
         lidar_config_from_model(mujoco.MjModel.from_xml_string(bad))
     assert set(LIDAR_NUMERICS.values()) <= set(re.findall(r'numeric name="(lidar_\w+)"', text))
+
+
+def test_standalone_defaults_agree_with_the_robot_model() -> None:
+    # A service run without the launcher (mjnav run, compose) falls back to its dataclass defaults: they must be
+    # the bundled robot's values, so nothing drifts from the MJCF unnoticed.
+    from mjnav.services.controller import ControllerConfig
+    from mjnav.services.mapper import MapperConfig
+    from mjnav.services.slam import SlamServiceConfig
+
+    info = world_info("rooms")
+    assert MapperConfig().robot_radius_m == pytest.approx(info.robot_radius_m)
+    assert ControllerConfig().robot_radius_m == pytest.approx(info.robot_radius_m)
+    assert SlamServiceConfig().laser_offset_m == pytest.approx(info.lidar_offset_m)
+    assert MapperConfig().laser_offset_m == pytest.approx(info.lidar_offset_m[:2])
