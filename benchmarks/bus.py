@@ -1,11 +1,18 @@
 """Bus benchmark: a 360-range LaserScan through mjnav's codec + bus vs raw Zenoh bytes of the same size.
 
-Both run in the same invocation, over the same in-process router on loopback, publisher in a child process and
-subscriber here (two processes, like two services). Latency is one-way, publish call → subscriber callback with the
-decoded message, from CLOCK_MONOTONIC stamps carried in the payload (the header stamp for mjnav, the first 8 bytes
-for raw). Throughput is the rate at which the subscriber receives when the publisher sends as fast as it can.
+Three variants: ``raw`` (plain Zenoh, the same publisher options, bytes in and out), ``mjnav`` (the bus: compiled
+CDR codec, validation, delivery), and ``mjnav_rosbags`` (the same bus with rosbags' serialisers in place of the
+compiled codecs of ``mjnav.msgs.cdr``: the end-to-end figure that module is kept for). Publisher in a child process,
+subscriber here (two processes, like two services), over the same in-process router on loopback, each variant on a
+namespace of its own.
 
-    python benchmarks/bus.py            # 3 × 3,000 latency samples, 50,000 throughput messages per variant
+Latency is one-way, publish call → subscriber callback with the decoded message, from CLOCK_MONOTONIC stamps carried
+in the payload (the header stamp for the bus, the first 8 bytes after the header for raw). The variants are
+interleaved message by message (raw, mjnav, mjnav_rosbags, raw, …; each at 500 Hz), so that the load of a shared
+machine, which changes from second to second, hits them alike: the ratios compare messages sent within the same
+2 ms. Throughput is the rate at which the subscriber receives when the publisher sends one variant as fast as it can.
+
+    python benchmarks/bus.py            # 3 × 3,000 latency samples per variant, 50,000 throughput messages each
     python benchmarks/bus.py --quick
 """
 
@@ -19,21 +26,28 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from mjnav.bus import Bus, BusConfig, cdr_encoding
 from mjnav.bus.bus import publisher_qos
-from mjnav.msgs import encode, from_dict, ros, topic
+from mjnav.msgs import codec, encode, from_dict, ros, topic
 
 BEAMS = 360
+SCAN = "sensor_msgs/msg/LaserScan"
+#: Variants: raw Zenoh, the bus, the bus with rosbags' codec instead of the compiled one.
+VARIANTS = ("raw", "mjnav", "mjnav_rosbags")
+LABELS = {"raw": "raw zenoh", "mjnav": "mjnav bus", "mjnav_rosbags": "bus+rosbags"}
+#: Latency runs send every variant in turn (``--variant interleaved``).
+INTERLEAVED = "interleaved"
 
 
 def _scan() -> Any:
     """A 360-beam scan with realistic ranges (its header is restamped per message)."""
     return from_dict(
-        "sensor_msgs/msg/LaserScan",
+        SCAN,
         {
             "header": {"frame_id": "laser"},
             "angle_min": -np.pi,
@@ -47,6 +61,64 @@ def _scan() -> Any:
     )
 
 
+def _variant_bus(bus: Bus, variant: str) -> Bus:
+    """A bus on ``bus``'s session in the variant's own namespace (``bench_raw/scan`` …)."""
+    return Bus(bus.session, f"bench_{variant}")
+
+
+def _sender(bus: Bus, variant: str) -> Callable[[], None]:
+    """A function that publishes one scan of ``variant``, stamped with CLOCK_MONOTONIC when it is called."""
+    vbus = _variant_bus(bus, variant)
+    if variant == "raw":
+        # Plain Zenoh with the same options as mjnav's snapshot publisher: only the codec and bus differ.
+        raw = bus.session.declare_publisher(
+            vbus.key("scan"), encoding=cdr_encoding(SCAN), **publisher_qos(topic("scan"))
+        )
+        payload = bytearray(encode(_scan()))
+
+        def send_raw() -> None:
+            struct.pack_into("<d", payload, 8, time.monotonic())
+            raw.put(bytes(payload))
+
+        time.sleep(0.5)  # raw Zenoh has no matching wait here: give discovery a moment
+        return send_raw
+    pub = vbus.publisher("scan")
+    if variant == "mjnav_rosbags":
+        pub._encode = codec.rosbags_encoder(SCAN)
+    pub.wait_for_subscribers(10.0)
+    template = _scan()
+    stamp = template.header.stamp
+
+    def send_msg() -> None:
+        # Restamp in place, as the raw variant rewrites its payload in place: the figure is the bus's cost.
+        stamp.sec, stamp.nanosec = divmod(round(time.monotonic() * 1e9), 1_000_000_000)
+        pub.put(template)
+
+    return send_msg
+
+
+def _receiver(bus: Bus, variant: str, sink: Callable[[float, float], None]) -> None:
+    """Subscribe to ``variant``'s scans; ``sink(latency_s, arrival)`` for each."""
+    vbus = _variant_bus(bus, variant)
+    if variant == "raw":
+
+        def on_sample(sample: Any) -> None:
+            data = sample.payload.to_bytes()
+            now = time.monotonic()
+            sink(now - struct.unpack_from("<d", data, 8)[0], now)
+
+        bus.session.declare_subscriber(vbus.key("scan"), on_sample)
+        return
+
+    def on_msg(msg: Any) -> None:
+        now = time.monotonic()
+        sink(now - ros.seconds(msg.header.stamp), now)
+
+    sub = vbus.subscribe("scan", callback=on_msg)
+    if variant == "mjnav_rosbags":
+        sub._decode = codec.rosbags_decoder(SCAN)
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -54,115 +126,73 @@ def _free_port() -> int:
 
 
 def publisher(endpoint: str, variant: str, count: int, rate_hz: float) -> None:
-    """Child process: publish ``count`` scans (mjnav) or same-size byte payloads (raw)."""
-    template = _scan()
-    stamp = template.header.stamp
+    """Child process: publish ``count`` scans of ``variant`` (or of every variant in turn: ``interleaved``)."""
     period = 1.0 / rate_hz if rate_hz > 0 else 0.0
     bus = Bus.open(BusConfig(connect=(endpoint,)))
     try:
-        if variant == "mjnav":
-            pub = bus.publisher("scan")
-            pub.wait_for_subscribers(10.0)
-            put = None
-        else:
-            # Plain Zenoh with the same options as mjnav's snapshot publisher: only the codec and bus differ.
-            raw = bus.session.declare_publisher(
-                bus.key("scan"),
-                encoding=cdr_encoding("sensor_msgs/msg/LaserScan"),
-                **publisher_qos(topic("scan")),
-            )
-            payload = bytearray(encode(template))
-            put = raw.put
-            time.sleep(0.5)  # raw Zenoh has no matching wait here: give discovery a moment
+        variants = VARIANTS if variant == INTERLEAVED else (variant,)
+        senders = [_sender(bus, v) for v in variants]
         start = time.perf_counter()
         for i in range(count):
-            if period:
-                delay = start + i * period - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
-            now = time.monotonic()
-            if put is None:
-                # Restamp in place, as the raw variant rewrites its payload in place: the figure is the bus's cost.
-                stamp.sec, stamp.nanosec = divmod(round(now * 1e9), 1_000_000_000)
-                pub.put(template)
-            else:
-                struct.pack_into("<d", payload, 8, now)
-                put(bytes(payload))
+            for k, send in enumerate(senders):
+                if period:
+                    delay = start + (i + k / len(senders)) * period - time.perf_counter()
+                    if delay > 0:
+                        time.sleep(delay)
+                send()
         time.sleep(0.2)
     finally:
         bus.close()
 
 
-def measure(endpoint: str, variant: str, count: int, rate_hz: float) -> dict[str, float]:
-    """Run one publisher child and collect what arrives here."""
-    latencies: list[float] = []
-    arrivals: list[float] = []
+def measure(endpoint: str, variant: str, count: int, rate_hz: float) -> dict[str, dict[str, float]]:
+    """Run one publisher child and collect what arrives here: figures per variant."""
+    variants = VARIANTS if variant == INTERLEAVED else (variant,)
+    latencies: dict[str, list[float]] = {v: [] for v in variants}
+    arrivals: dict[str, list[float]] = {v: [] for v in variants}
     lock = threading.Lock()
     bus = Bus.open(BusConfig(connect=(endpoint,)))
     try:
-        if variant == "mjnav":
+        for v in variants:
 
-            def on_msg(msg: Any) -> None:
-                now = time.monotonic()
+            def sink(latency: float, now: float, v: str = v) -> None:
                 with lock:
-                    latencies.append(now - ros.seconds(msg.header.stamp))
-                    arrivals.append(now)
+                    latencies[v].append(latency)
+                    arrivals[v].append(now)
 
-            bus.subscribe("scan", callback=on_msg)
-        else:
-
-            def on_sample(sample: Any) -> None:
-                data = sample.payload.to_bytes()
-                now = time.monotonic()
-                with lock:
-                    latencies.append(now - struct.unpack_from("<d", data, 8)[0])
-                    arrivals.append(now)
-
-            bus.session.declare_subscriber(bus.key("scan"), on_sample)
-        child = subprocess.run(
-            [
-                sys.executable,
-                __file__,
-                "--role",
-                "publisher",
-                "--endpoint",
-                endpoint,
-                "--variant",
-                variant,
-                "--count",
-                str(count),
-                "--rate",
-                str(rate_hz),
-            ],
-            check=True,
-        )
-        del child
+            _receiver(bus, v, sink)
+        args = ["--role", "publisher", "--endpoint", endpoint, "--variant", variant]
+        subprocess.run([sys.executable, __file__, *args, "--count", str(count), "--rate", str(rate_hz)], check=True)
         quiet_since = time.monotonic()
         seen = -1
         while time.monotonic() - quiet_since < 0.3:  # drain what is still in flight
             with lock:
-                n = len(arrivals)
+                n = sum(len(a) for a in arrivals.values())
             if n != seen:
                 seen, quiet_since = n, time.monotonic()
             time.sleep(0.02)
     finally:
         bus.close()
-    lat = np.array(latencies[min(200, len(latencies) // 10) :]) * 1e6
-    span = arrivals[-1] - arrivals[0] if len(arrivals) > 1 else float("nan")
-    return {
-        "received": len(arrivals),
-        "sent": count,
-        "p50_us": float(np.percentile(lat, 50)) if lat.size else float("nan"),
-        "p99_us": float(np.percentile(lat, 99)) if lat.size else float("nan"),
-        "rate_per_s": (len(arrivals) - 1) / span if span > 0 else float("nan"),
-    }
+    out = {}
+    for v in variants:
+        lat = np.array(latencies[v][min(200, len(latencies[v]) // 10) :]) * 1e6
+        got = arrivals[v]
+        span = got[-1] - got[0] if len(got) > 1 else float("nan")
+        out[v] = {
+            "received": len(got),
+            "sent": count,
+            "p50_us": float(np.percentile(lat, 50)) if lat.size else float("nan"),
+            "p99_us": float(np.percentile(lat, 99)) if lat.size else float("nan"),
+            "rate_per_s": (len(got) - 1) / span if span > 0 else float("nan"),
+        }
+    return out
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer messages (for make bench)")
     parser.add_argument("--json", action="store_true", help="print results as JSON")
-    parser.add_argument("--repeat", type=int, default=3, help="alternating latency runs per variant (default 3)")
+    parser.add_argument("--repeat", type=int, default=3, help="interleaved latency runs (default 3)")
     parser.add_argument("--role", default="main", help=argparse.SUPPRESS)
     parser.add_argument("--endpoint", help=argparse.SUPPRESS)
     parser.add_argument("--variant", help=argparse.SUPPRESS)
@@ -176,41 +206,45 @@ def main() -> int:
     lat_n, thr_n = (1000, 10_000) if args.quick else (3000, 50_000)
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     router = Bus.open(BusConfig(mode="router", connect=(), listen=(endpoint,)))
-    runs: dict[str, list[dict[str, float]]] = {"raw": [], "mjnav": []}
+    runs: dict[str, list[dict[str, float]]] = {v: [] for v in VARIANTS}
     results: dict[str, dict[str, dict[str, float]]] = {}
     try:
-        # Latency runs alternate between the variants so that drift on a shared machine hits both alike; the
-        # figures are the medians over the repeats.
         for _ in range(args.repeat):
-            for variant in ("raw", "mjnav"):
-                runs[variant].append(measure(endpoint, variant, lat_n, 500.0))
-        for variant in ("raw", "mjnav"):
+            for variant, figures in measure(endpoint, INTERLEAVED, lat_n, 500.0).items():
+                runs[variant].append(figures)
+        for variant in VARIANTS:
             latency = {k: float(np.median([r[k] for r in runs[variant]])) for k in runs[variant][0]}
-            results[variant] = {"latency": latency, "throughput": measure(endpoint, variant, thr_n, 0.0)}
+            results[variant] = {"latency": latency, "throughput": measure(endpoint, variant, thr_n, 0.0)[variant]}
     finally:
         router.close()
     size = len(encode(_scan()))
-    raw, ours = results["raw"], results["mjnav"]
-    p50_ratios = [m["p50_us"] / r["p50_us"] for r, m in zip(runs["raw"], runs["mjnav"], strict=True)]
+    ratios = {v: [m["p50_us"] / r["p50_us"] for r, m in zip(runs["raw"], runs[v], strict=True)] for v in VARIANTS[1:]}
     if args.json:
-        print(json.dumps({"payload_bytes": size, "p50_ratio_per_repeat": p50_ratios, **results}))
+        print(json.dumps({"payload_bytes": size, "p50_ratio_per_repeat": ratios, **results}))
         return 0
     print(f"LaserScan, {BEAMS} ranges, {size} bytes; publisher and subscriber in separate processes via a router")
-    print(f"latency: median of {args.repeat} alternating runs of {lat_n} messages at 500 Hz per variant")
-    print(f"{'':24s} {'raw zenoh':>12s} {'mjnav bus':>12s} {'ratio':>8s}")
+    print(f"latency: median of {args.repeat} runs of {lat_n} messages per variant at 500 Hz, variants interleaved")
+    print(
+        f"{'':24s}" + "".join(f" {LABELS[v]:>12s}" for v in VARIANTS) + "".join(f" {'ratio':>6s}" for _ in VARIANTS[1:])
+    )
     for label, phase, key in (
         ("latency p50 (µs)", "latency", "p50_us"),
         ("latency p99 (µs)", "latency", "p99_us"),
         ("throughput (msg/s)", "throughput", "rate_per_s"),
     ):
-        a, b = raw[phase][key], ours[phase][key]
-        print(f"{label:24s} {a:12.1f} {b:12.1f} {b / a:8.2f}")
-    for variant in ("raw", "mjnav"):
+        values = [results[v][phase][key] for v in VARIANTS]
+        print(
+            f"{label:24s}"
+            + "".join(f" {x:12.1f}" for x in values)
+            + "".join(f" {x / values[0]:6.2f}" for x in values[1:])
+        )
+    for variant in VARIANTS:
         r = results[variant]["throughput"]
         print(
             f"{variant}: received {r['received']} of {r['sent']} in the throughput run (snapshot topic: drops allowed)"
         )
-    print("p50 ratio per repeat: " + ", ".join(f"{r:.2f}" for r in p50_ratios))
+    for variant in VARIANTS[1:]:
+        print(f"p50 ratio per repeat, {LABELS[variant]}: " + ", ".join(f"{r:.2f}" for r in ratios[variant]))
     print("goal: latency <= 1.3x raw, >= 50,000 scans/s")
     return 0
 

@@ -195,6 +195,7 @@ class Subscription:
         self._by_key: dict[str, Any] = {}
         self._queue: deque[Any] = deque()
         self._fresh = False
+        self._waiters = 0  # threads in wait(): delivery only notifies when there are any
         self.count = 0
         self._wildcard = "*" in key
         self._immediate = immediate
@@ -239,7 +240,8 @@ class Subscription:
                 self._queue.append(msg)
             self._fresh = True
             self.count += 1
-            self._cond.notify_all()
+            if self._waiters:  # Condition.notify_all is pure Python: skip it on the hot path when nobody waits
+                self._cond.notify_all()
         self._bus._count_received()
         if self._callback is not None:
             try:
@@ -294,7 +296,11 @@ class Subscription:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     return None
-                self._cond.wait(remaining)
+                self._waiters += 1
+                try:
+                    self._cond.wait(remaining)
+                finally:
+                    self._waiters -= 1
 
     def close(self) -> None:
         """Undeclare the subscriber."""

@@ -97,6 +97,19 @@ def register(sub: Any) -> None:
         "each identity publish only its own topics (README 'Security'); default: plain TCP on loopback, no access "
         "control",
     )
+    up.add_argument(
+        "--ros",
+        choices=["rmw_zenoh"],
+        help="also run the ros_bridge service: every topic on rmw_zenoh's keys, with its graph tokens, so ROS 2 nodes "
+        "on RMW_IMPLEMENTATION=rmw_zenoh_cpp (ROS_DOMAIN_ID, or --set ros_bridge.domain_id=N) see the stack and can "
+        "send cmd_vel and goals (README 'ROS 2 over rmw_zenoh')",
+    )
+    up.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="also run the foxglove service: a Foxglove WebSocket server on ws://127.0.0.1:8765 streaming every "
+        "topic with its ROS 2 schema (--set foxglove.port=N; layout: services/foxglove_layout.json)",
+    )
     up.add_argument("--list", action="store_true", help="list the stack's services and exit")
     up.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
     up.set_defaults(func=run_up)
@@ -142,11 +155,15 @@ def run_up(args: argparse.Namespace) -> int:
     setup_logging(args.log_level)
     try:
         stack = load_stack(args.stack)
+        optional = (["ros_bridge"] if args.ros == "rmw_zenoh" else []) + (["foxglove"] if args.foxglove else [])
+        if args.ros and args.secure:
+            raise ConfigError("--ros rmw_zenoh does not work with --secure (the ACL has no rules for ROS 2 keys)")
+        stack = stack.with_services(optional)
         if args.list:
             for spec in stack.services:
                 print(f"{spec.name:12s} {spec.class_path}  config={spec.config_file}  restarts={spec.restarts}")
             return 0
-        only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None
+        only = [s.strip() for s in args.only.split(",") if s.strip()] + optional if args.only else None
         overrides: dict[str, list[str]] = {}
         if args.world:
             stack.get("sim")

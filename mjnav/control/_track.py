@@ -273,3 +273,23 @@ def unpack_pose(pose: PoseInput) -> tuple[float, float, float]:
     if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fth)):
         raise ValueError(f"pose must be finite, got ({fx}, {fy}, {fth})")
     return fx, fy, fth
+
+
+@njit(cache=True)
+def chord_blocked(
+    x: float, y: float, lx: float, ly: float, obstacles: NDArray[np.float64], clearance_m: float
+) -> bool:  # pragma: no cover - compiled
+    """True when an obstacle point lies within ``clearance_m`` of the segment (x, y) → (lx, ly)."""
+    dx = lx - x
+    dy = ly - y
+    len2 = dx * dx + dy * dy
+    c2 = clearance_m * clearance_m
+    for i in range(obstacles.shape[0]):
+        px = obstacles[i, 0] - x
+        py = obstacles[i, 1] - y
+        t = 0.0 if len2 <= 0.0 else min(1.0, max(0.0, (px * dx + py * dy) / len2))
+        ex = px - t * dx
+        ey = py - t * dy
+        if ex * ex + ey * ey < c2:
+            return True
+    return False

@@ -248,7 +248,8 @@ def safe_command(
     """The command to send instead of (v, ω): the same curvature at the first collision-free speed of v,
     ``max_speed_mps``, 0.75 v, 0.5 v, 0.25 v, 0 and, last, straight back at half ``max_speed_mps`` (out of a
     crossing obstacle's way), else the one whose collision is furthest away. A robot already within radius +
-    margin of a point gets the first of those commands that does not bring it closer, else a stop.
+    margin of a point gets the first of those commands that moves without bringing it closer (backing out,
+    typically), else a stop.
 
     Args:
         v_mps, omega_radps: the tracker's command (forward speed >= 0).
@@ -275,10 +276,11 @@ def safe_command(
         return best
     # Already within radius + margin of a point: every command "collides" at once. Only a command that does not
     # bring the robot any closer over the static horizon may go (the first in the order above: moving away keeps
-    # the robot going), else it stops — never the original command into the obstacle.
+    # the robot going; standing still never frees it), else it stops — never the original command into the
+    # obstacle.
     now = _closest_approach(0.0, 0.0, points_xy, velocities_mps, params)
     for s, w in candidates:
-        if _closest_approach(s, w, points_xy, velocities_mps, params) >= now - 1e-9:
+        if (s, w) != (0.0, 0.0) and _closest_approach(s, w, points_xy, velocities_mps, params) >= now - 1e-9:
             return s, w, 0.0
     return 0.0, 0.0, 0.0
 

@@ -6,12 +6,14 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from mjnav.control._track import (
     PathProgress,
     PoseInput,
     check_params,
+    chord_blocked,
     lookahead_point,
     signed_cross_track,
     unpack_pose,
@@ -174,6 +176,8 @@ class PurePursuit:
         obstacle_distance_m: float = math.inf,
         *,
         target_speed_mps: float | None = None,
+        obstacles_xy: ArrayLike | None = None,
+        chord_clearance_m: float = 0.0,
     ) -> tuple[float, float]:
         """One control step: the (v, ω) command that pursues the path.
 
@@ -194,6 +198,11 @@ class PurePursuit:
             obstacle_distance_m: distance to the nearest obstacle, metres (inf: none).
             target_speed_mps: cruise speed for this step, m/s (default ``params.desired_speed_mps``),
                 e.g. from a velocity profile.
+            obstacles_xy: (M, 2) obstacle points in the path frame (e.g. the newest scan), or None. With them the
+                lookahead is shortened (by quarters, down to half ``min_lookahead_m``) while the straight chord
+                from the robot to the lookahead point passes within ``chord_clearance_m`` of one: the pursuit
+                arc stays near the chord, so a long lookahead around a corner would cut it.
+            chord_clearance_m: the clearance the chord must keep, metres (the robot's radius plus a margin).
 
         Returns:
             (v m/s, ω rad/s).
@@ -225,6 +234,11 @@ class PurePursuit:
 
         look = adaptive_lookahead(speed_mps, p.lookahead_gain_s, p.min_lookahead_m, p.max_lookahead_m)
         lx, ly, _ = lookahead_point(pts, x, y, k, t, look)
+        if obstacles_xy is not None and chord_clearance_m > 0.0:
+            obstacles = np.ascontiguousarray(obstacles_xy, dtype=np.float64).reshape(-1, 2)
+            while look > 0.5 * p.min_lookahead_m and chord_blocked(x, y, lx, ly, obstacles, chord_clearance_m):
+                look *= 0.75
+                lx, ly, _ = lookahead_point(pts, x, y, k, t, look)
         c, s = math.cos(th), math.sin(th)
         dx, dy = lx - x, ly - y
         xr = c * dx + s * dy

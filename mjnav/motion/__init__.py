@@ -4,6 +4,7 @@ Poses are (x, y, θ) in metres and radians, as (3,) or (N, 3) float arrays or :c
 """
 
 from mjnav.motion.diffdrive import DiffDriveKinematics
+from mjnav.motion.gyrodometry import GyroOdometry
 from mjnav.motion.odometry import (
     apply_odometry_delta,
     odometry_delta,
@@ -15,6 +16,7 @@ from mjnav.motion.velocity import sample_velocity_motion, velocity_motion
 
 __all__ = [
     "DiffDriveKinematics",
+    "GyroOdometry",
     "apply_odometry_delta",
     "odometry_delta",
     "odometry_likelihood",

@@ -209,6 +209,12 @@ def transform_stamped(t_s: float, parent_frame: str, child_frame: str, pose: Pos
     )
 
 
+def transform2d(transform: Any) -> Pose2D:
+    """Planar pose (x, y, yaw) of a geometry_msgs/Transform; z, roll and pitch are dropped."""
+    q = transform.rotation
+    return Pose2D(transform.translation.x, transform.translation.y, quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
 def transform_stamped_3d(
     t_s: float, parent_frame: str, child_frame: str, position_m: Any, orientation_xyzw: Any
 ) -> Any:

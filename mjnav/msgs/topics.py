@@ -132,7 +132,7 @@ TOPICS: dict[str, Topic] = {
             "tf2_msgs/msg/TFMessage",
             _S,
             "sim, slam",
-            "50 Hz, 20 Hz",
+            "50 Hz, 10 Hz",
             "`odom` → `base_link` (sim), `map` → `odom` (slam)",
         ),
         Topic(
@@ -157,7 +157,7 @@ TOPICS: dict[str, Topic] = {
             "geometry_msgs/msg/PoseWithCovarianceStamped",
             _S,
             "slam",
-            "20 Hz",
+            "10 Hz",
             "The robot's estimated pose in `map` (SLAM's `map` → `odom` composed with the newest odometry)",
         ),
         Topic(

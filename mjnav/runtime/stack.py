@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import os
 from dataclasses import dataclass
@@ -23,6 +24,13 @@ import mjnav
 from mjnav.msgs.topics import DEFAULT_NAMESPACE, check_namespace
 from mjnav.runtime.config import ConfigError, build_config, parse_override, read_toml
 from mjnav.runtime.service import Service
+
+#: Services a stack runs only when asked (``mjnav up --ros rmw_zenoh``, ``--foxglove``): name → ``module:Class``.
+#: Their config is ``<name>.toml`` beside the stack file (all defaults when there is none).
+OPTIONAL_SERVICES = {
+    "ros_bridge": "mjnav.services.ros_bridge:RosBridgeService",
+    "foxglove": "mjnav.services.foxglove:FoxgloveService",
+}
 
 
 def services_dir() -> Path:
@@ -96,7 +104,23 @@ class Stack:
         for spec in self.services:
             if spec.name == name:
                 return spec
-        raise ConfigError(f"no service {name!r} in {self.path}; services: {', '.join(self.names())}")
+        class_path = OPTIONAL_SERVICES.get(name)
+        if class_path is not None:
+            config = self.path.parent / f"{name}.toml"
+            return ServiceSpec(name, class_path, config if config.is_file() else None)
+        optional = ", ".join(OPTIONAL_SERVICES)
+        raise ConfigError(
+            f"no service {name!r} in {self.path}; services: {', '.join(self.names())} (optional: {optional})"
+        )
+
+    def with_services(self, names: list[str]) -> Stack:
+        """This stack with the optional services ``names`` appended (those it runs already are kept as they are).
+
+        Raises:
+            ConfigError: a name is neither in the stack nor optional.
+        """
+        extra = tuple(self.get(name) for name in names if name not in self.names())
+        return dataclasses.replace(self, services=self.services + extra)
 
     def select(self, only: list[str] | None) -> list[ServiceSpec]:
         """The services named in ``only`` (all when None), in stack order; unknown names are an error."""

@@ -20,7 +20,6 @@ not moved ``progress_radius_m`` in ``progress_timeout_s`` (Nav2's progress check
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -36,10 +35,11 @@ from mjnav.control.collision import (
     safe_command,
     scan_points,
 )
-from mjnav.geometry import Pose2D, PoseHistory, wrap_angle
+from mjnav.geometry import Pose2D, wrap_angle
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
+from mjnav.runtime.pose import PoseInput
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
 #: Map value (occupancy probability, %) from which a cell counts as a wall for the collision check.
@@ -52,7 +52,8 @@ class ControllerConfig:
 
     Attributes:
         rate_hz: command rate (sim time).
-        pose_source: ``slam`` (SLAM's estimate on ``pose``), ``ground_truth`` (the sim's truth) or ``odom``.
+        pose_source: ``slam`` (SLAM's ``map → odom`` on ``tf`` ∘ ``odom``, see :mod:`mjnav.runtime.pose`),
+            ``ground_truth`` (the sim's truth) or ``odom``.
         max_speed_mps: cruise speed v_max.
         lookahead_gain_s, min_lookahead_m, max_lookahead_m: L = clamp(v·g, L_min, L_max).
         curvature_threshold_invm: κ_h of the curvature heuristic.
@@ -67,6 +68,9 @@ class ControllerConfig:
         path_timeout_s: stop when no path arrived for this long (sim seconds; the planner re-sends every second).
         lost_distance_m: stop when the robot is further than this from the path.
         collision_margin_m: clearance the collision check keeps beyond ``robot_radius_m``.
+        chord_margin_m: the straight line to the lookahead point keeps this beyond ``robot_radius_m`` from every
+            scan point, else the lookahead shrinks (pure pursuit cuts a corner along that line); as the smoother
+            keeps its path ``margin_m`` off the inscribed radius.
         collision_static_horizon_s: how far ahead (seconds of the commanded arc) static scan points are checked.
         collision_moving_horizon_s: how far ahead moving scan points are checked.
         moving_speed_mps: scan points moving faster than this between two scans count as moving.
@@ -96,6 +100,7 @@ class ControllerConfig:
     path_timeout_s: float = 3.0
     lost_distance_m: float = 1.0
     collision_margin_m: float = 0.02
+    chord_margin_m: float = 0.1
     collision_static_horizon_s: float = 0.3
     collision_moving_horizon_s: float = 4.0
     moving_speed_mps: float = 0.25
@@ -122,6 +127,8 @@ class ControllerConfig:
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.chord_margin_m >= 0:
+            raise ValueError(f"chord_margin_m must be >= 0, got {self.chord_margin_m}")
         if not self.rotate_max_radps >= self.rotate_min_radps:
             raise ValueError(f"rotate_max_radps must be >= rotate_min_radps, got {self.rotate_max_radps}")
 
@@ -181,7 +188,7 @@ class ControllerService(Service[ControllerConfig]):
         self.pursuit = PurePursuit(self.config.pursuit_params())
         self.collision = self.config.collision_params()
         self.path_sub = self.bus.subscribe("path")
-        self.pose_sub = self.bus.subscribe(ros.POSE_TOPICS[self.config.pose_source], callback=self._on_pose)
+        self.pose_in = PoseInput(self.bus, self.config.pose_source)
         self.scan_sub = self.bus.subscribe("scan")
         self.map_sub = self.bus.subscribe("map")
         self.status_sub = self.bus.subscribe("goal_status")
@@ -192,9 +199,6 @@ class ControllerService(Service[ControllerConfig]):
         self.stopped_reason = ""
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
-        # Pose callbacks only append here; step() moves them into the history (scan points need the pose of their
-        # stamp).
-        self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
 
     def activate(self) -> None:
         # Also called again when the sim clock restarts: the goal is re-adopted from the planner's heartbeat.
@@ -209,23 +213,17 @@ class ControllerService(Service[ControllerConfig]):
         self.path_points_msg: Any = None
         self.speed = 0.0
         self.pursuit.reset()
-        self.poses = PoseHistory(horizon_s=2.0)
-        self.pending.clear()
+        self.pose_in.reset()
         self.obstacles: _ScanObstacles | None = None  # the newest scan, fused
         self.walls: tuple[GridFrame, Any] | None = None  # the map's occupied cells, grown by one cell
 
-    def _on_pose(self, msg: Any) -> None:
-        self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
-
     def _update_obstacles(self) -> None:
         """Fuse a new scan: its points in the map frame (at the pose of its stamp) and their velocities."""
-        while self.pending:
-            self.poses.add(*self.pending.popleft())
         scan = self.scan_sub.take()
         if scan is None:
             return
         stamp = ros.seconds(scan.header.stamp)
-        pose = self.poses.at(stamp)
+        pose = self.pose_in.at(stamp)
         if pose is None:
             return
         ranges = np.asarray(scan.ranges, dtype=np.float64)
@@ -311,6 +309,7 @@ class ControllerService(Service[ControllerConfig]):
         return self.path_points
 
     def step(self, now: float) -> None:
+        self.pose_in.update()
         self._update_obstacles()
         self._track_goal()
         path = self._current_path(now)
@@ -325,16 +324,23 @@ class ControllerService(Service[ControllerConfig]):
         if now - self.path_received > self.config.path_timeout_s:
             self._stop(f"path older than {self.config.path_timeout_s} s: is the smoother running?")
             return
-        pose_msg = self.pose_sub.latest()
-        if pose_msg is None or now - ros.seconds(pose_msg.header.stamp) > self.config.pose_timeout_s:
+        latest = self.pose_in.latest()
+        if latest is None or now - latest[0] > self.config.pose_timeout_s:
             self._stop("no recent pose")
             return
-        pose = ros.pose_of(pose_msg)
+        pose = latest[1]
         if self.at_goal_xy:
             self._turn_to_goal(now, pose)
             return
         try:
-            v, w = self.pursuit.compute(pose, self.speed, path, self._obstacle_distance())
+            v, w = self.pursuit.compute(
+                pose,
+                self.speed,
+                path,
+                self._obstacle_distance(),
+                obstacles_xy=None if self.obstacles is None else self.obstacles.points,
+                chord_clearance_m=self.config.robot_radius_m + self.config.chord_margin_m,
+            )
         except PathError as exc:
             self.path_msg = None
             self._stop(f"unusable path: {exc}")
@@ -374,10 +380,10 @@ class ControllerService(Service[ControllerConfig]):
         if now - self.heartbeat > cfg.planner_timeout_s:
             self._fail(now, f"no word from the planner for {now - self.heartbeat:.1f} s")
             return True
-        pose_msg = self.pose_sub.latest()
-        if pose_msg is None:
+        latest = self.pose_in.latest()
+        if latest is None:
             return False
-        pose = ros.pose_of(pose_msg)
+        pose = latest[1]
         if self.progress is None or math.hypot(pose.x - self.progress[0], pose.y - self.progress[1]) > (
             cfg.progress_radius_m
         ):

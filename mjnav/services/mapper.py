@@ -2,15 +2,15 @@
 
 With ``map_source = "scan"`` (the default) each new scan is fused into a persistent log-odds
 :class:`~mjnav.mapping.OccupancyGrid` (marking and clearing, like Nav2's obstacle layer) at the pose the robot had
-when the scan was taken, interpolated from ``pose_source`` (SLAM's ``pose`` by default), and inflated into
-``costmap`` (0–100, −1 unknown) at ``publish_rate_hz`` of sim time. Every scan counts (SLAM's own map holds only its
-keyframes), which keeps thin walls solid in the costmap. The grid is published on ``map`` only when the mapper is
-the map's source (``pose_source`` ``ground_truth`` or ``odom``; on SLAM's pose, SLAM owns ``map``); it is
-checkpointed in the run's state directory, saved as PGM + YAML on request (endpoint ``save_map``) and on exit
-(``save_path``); ``prior_map`` starts from a saved map.
+when the scan was taken, from ``pose_source`` (by default SLAM's ``map → odom`` ∘ the odometry at the scan's stamp),
+and inflated into ``costmap`` (0–100, −1 unknown) at ``publish_rate_hz`` of sim time. Every scan counts (SLAM's own
+map holds only its keyframes), which keeps thin walls solid in the costmap. The grid is published on ``map`` only
+when the mapper is the map's source (``pose_source`` ``ground_truth`` or ``odom``; on SLAM's pose, SLAM owns
+``map``); it is checkpointed in the run's state directory, saved as PGM + YAML on request (endpoint ``save_map``)
+and on exit (``save_path``); ``prior_map`` starts from a saved map.
 
 With ``map_source = "slam"`` the static layer is SLAM's ``map`` (resampled onto the mapper's fixed grid) and an
-obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` at SLAM's ``pose``; ``save_map`` then
+obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` at SLAM's pose; ``save_map`` then
 saves the newest SLAM map.
 """
 
@@ -18,18 +18,18 @@ from __future__ import annotations
 
 import json
 import os
-from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
-from mjnav.geometry import Pose2D, PoseHistory
+from mjnav.geometry import Pose2D
 from mjnav.mapping import OccupancyGrid, inflation_costmap, read_ros_map, write_ros_map
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
+from mjnav.runtime.pose import PoseInput
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,8 @@ class MapperConfig:
         rate_hz: loop rate (sim time); every new scan is integrated at the next step.
         publish_rate_hz: ``map`` and ``costmap`` publications per sim second.
         map_source: ``slam`` (static layer from SLAM's ``map``) or ``scan`` (a log-odds map of its own).
-        pose_source: ``slam`` (SLAM's ``pose``), ``ground_truth`` (true pose) or ``odom`` (drifting).
+        pose_source: ``slam`` (SLAM's ``map → odom`` ∘ odometry, :mod:`mjnav.runtime.pose`), ``ground_truth``
+            (true pose) or ``odom`` (drifting).
         obstacle_range_m: the obstacle layer marks the newest scan's returns up to this range (slam mode).
         width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)); ``mjnav
             up`` sizes it to the sim's world (:meth:`mjnav.runtime.launcher.Launcher._settings_from_world`).
@@ -48,7 +49,9 @@ class MapperConfig:
         max_range_m: readings at or beyond this are "no return" (free up to it).
         robot_radius_m: inscribed radius for the costmap's lethal inflation (``mjnav up``: the robot model's
             footprint radius).
-        inflation_radius_m: cost decays to 0 at this distance from obstacles.
+        inflation_radius_m: cost decays to 0 at this distance from obstacles (0.7 left a 1.4 m corridor one
+            zero-cost line, its centre: paths 20 % longer than the shortest in the maze; 0.5, near Nav2's 0.55,
+            leaves a band to round corners in).
         cost_scaling_factor: exponential decay rate of the cost, 1/m.
         prior_map: ROS map YAML to start from ("" = unknown everywhere; its grid replaces width/height/origin).
         save_path: ROS map YAML written on exit ("" = don't).
@@ -57,7 +60,7 @@ class MapperConfig:
             restarted mapper resumes (``mjnav up`` gives one per run; 0 = never).
     """
 
-    rate_hz: float = 20.0
+    rate_hz: float = 10.0
     publish_rate_hz: float = 2.0
     map_source: Literal["slam", "scan"] = "scan"
     pose_source: Literal["slam", "ground_truth", "odom"] = "slam"
@@ -69,7 +72,7 @@ class MapperConfig:
     laser_offset_m: tuple[float, float] = (0.0, 0.0)
     max_range_m: float = 12.0
     robot_radius_m: float = 0.19
-    inflation_radius_m: float = 0.7
+    inflation_radius_m: float = 0.5
     cost_scaling_factor: float = 5.0
     prior_map: str = ""
     save_path: str = ""
@@ -115,10 +118,8 @@ class MapperService(Service[MapperConfig]):
         self.slam_mode = cfg.map_source == "slam"
         if not self.slam_mode:
             self._restore_checkpoint()
-        # Pose callbacks run in Zenoh threads: they only append here; step() moves them into the history.
-        self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
         self.scan = self.bus.subscribe("scan")
-        self.bus.subscribe(ros.POSE_TOPICS[cfg.pose_source], callback=self._on_pose)
+        self.pose_in = PoseInput(self.bus, cfg.pose_source)
         self.static = self.bus.subscribe("map") if self.slam_mode else None
         # On SLAM's pose, SLAM owns the ``map`` topic; the mapper's own grid is then only the costmap's layer.
         self.map_pub = None if self.slam_mode or cfg.pose_source == "slam" else self.bus.publisher("map")
@@ -135,16 +136,11 @@ class MapperService(Service[MapperConfig]):
         OccupancyGrid(8, 8, 0.1).integrate_scan((0.4, 0.4, 0.0), np.zeros(1), np.ones(1), 1.0)
 
     def activate(self) -> None:
-        self.poses = PoseHistory(horizon_s=2.0)
-        self.pending.clear()
+        self.pose_in.reset()
         self.next_publish = 0.0
 
-    def _on_pose(self, msg: Any) -> None:
-        self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
-
     def step(self, now: float) -> None:
-        while self.pending:
-            self.poses.add(*self.pending.popleft())
+        self.pose_in.update()
         scan = self.scan.take()
         if scan is not None:
             self._integrate(scan)
@@ -198,9 +194,7 @@ class MapperService(Service[MapperConfig]):
 
     def _integrate(self, scan: Any) -> None:
         stamp = ros.seconds(scan.header.stamp)
-        # SLAM's pose of a scan's time comes out in the same lockstep round as the scan (after it): in slam mode
-        # the newest pose, at most 0.15 s older, stands in for it (the pose follows odometry at 20 Hz).
-        pose = self.poses.at(stamp, 0.15 if self.config.pose_source == "slam" else 0.05)
+        pose = self.pose_in.at(stamp)
         if pose is None:
             self.skipped += 1
             if self.skipped in (1, 10, 100) or self.skipped % 1000 == 0:

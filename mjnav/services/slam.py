@@ -32,6 +32,7 @@ import numpy as np
 from mjnav.estimation.slam import GraphSlam, Localizer, LocalizerConfig, SlamConfig, SlamError, compose, invert
 from mjnav.geometry import Pose2D, PoseHistory
 from mjnav.mapping import OccupancyGrid, read_ros_map
+from mjnav.motion.gyrodometry import GyroOdometry
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
 
@@ -52,11 +53,13 @@ class SlamServiceConfig:
         resolution_m: map cell size, metres.
         map_rate_hz: ``map`` publications per sim second (rendering it costs more than a scan).
         loop_closure: search for loop closures (mapping mode).
+        use_gyro: take the heading increments from the IMU's gyro instead of the wheels (distance stays the
+            wheels'): :class:`mjnav.motion.gyrodometry.GyroOdometry`, its bias learnt at standstill.
         checkpoint_period_s: checkpoint interval (sim s) of the mapping state in the run's state directory
             (0 = never).
     """
 
-    rate_hz: float = 20.0
+    rate_hz: float = 10.0
     mode: Literal["mapping", "localization"] = "mapping"
     map_file: str = ""
     initial_pose: tuple[float, ...] = ()
@@ -67,6 +70,7 @@ class SlamServiceConfig:
     resolution_m: float = 0.05
     map_rate_hz: float = 1.0
     loop_closure: bool = True
+    use_gyro: bool = True
     checkpoint_period_s: float = 2.0
 
     def __post_init__(self) -> None:
@@ -90,7 +94,11 @@ class SlamService(Service[SlamServiceConfig]):
     def configure(self) -> None:
         cfg = self.config
         self.pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
+        self.pending_gyro: deque[tuple[float, float]] = deque(maxlen=2000)
         self.bus.subscribe("odom", callback=self._on_odom)
+        if cfg.use_gyro:
+            self.bus.subscribe("imu", callback=self._on_imu)
+        self.gyro_odom = GyroOdometry()
         self.scan = self.bus.subscribe("scan")
         self.initial = self.bus.subscribe("initialpose")
         self.pose_pub = self.bus.publisher("pose")
@@ -112,13 +120,19 @@ class SlamService(Service[SlamServiceConfig]):
         if self.start is None and self.map_to_odom is None and cfg.initial_pose:
             sx, syaw = cfg.initial_sigma
             self.start = (np.asarray(cfg.initial_pose, dtype=float), np.diag([sx**2, sx**2, syaw**2]), None)
+            if self.localizer is not None:
+                self.localizer.set_pose(self.start[0], _positive(self.start[1]))  # odometry: the next update's
 
     def activate(self) -> None:
         # Called again when the sim clock goes back (the simulator restarted): its odometry starts again from zero
         # at the world's start, which map → odom already places, so mapping goes on from map → odom ∘ odometry.
-        self.reanchor = getattr(self, "odom", None) is not None
+        # Also after resuming from a checkpoint: the estimator's (gyro-aided) odometry frame starts afresh.
+        self.reanchor = self.map_to_odom is not None
         self.odom = PoseHistory(horizon_s=5.0)
+        self.fused = PoseHistory(horizon_s=5.0)  # gyro-aided odometry (= odom without use_gyro), same stamps
+        self.gyro_odom.reset()
         self.pending.clear()
+        self.pending_gyro.clear()
         self.next_map = 0.0
         self.next_static = 0.0
         self.next_checkpoint = 0.0  # the first checkpoint as soon as mapping started
@@ -126,11 +140,22 @@ class SlamService(Service[SlamServiceConfig]):
     def _on_odom(self, msg: Any) -> None:
         self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
 
+    def _on_imu(self, msg: Any) -> None:
+        self.pending_gyro.append((ros.seconds(msg.header.stamp), float(msg.angular_velocity.z)))
+
+    def _take_odometry(self) -> None:
+        """Move the new wheel poses into ``odom`` and their gyro-aided counterparts into ``fused``."""
+        while self.pending_gyro:
+            self.gyro_odom.add_gyro(*self.pending_gyro.popleft())
+        while self.pending:
+            t, pose = self.pending.popleft()
+            self.odom.add(t, pose)
+            self.fused.add(t, self.gyro_odom.add_odom(t, pose) if self.config.use_gyro else pose)
+
     # ------------------------------------------------------------------------------------------------ loop
 
     def step(self, now: float) -> None:
-        while self.pending:
-            self.odom.add(*self.pending.popleft())
+        self._take_odometry()
         for msg in self.initial.drain():
             self._set_initial(msg)
         scan = self.scan.take()
@@ -159,7 +184,7 @@ class SlamService(Service[SlamServiceConfig]):
             return
         pose = ros.pose_of(msg)
         cov = ros.planar_covariance(msg)
-        latest = self.odom.latest()
+        latest = self.fused.latest()
         self.start = (np.array([pose.x, pose.y, pose.theta]), cov, None if latest is None else latest[1])
         if self.localizer is not None:
             odom = None if latest is None else (latest[1].x, latest[1].y, latest[1].theta)
@@ -171,20 +196,21 @@ class SlamService(Service[SlamServiceConfig]):
 
     def _process(self, scan: Any) -> None:
         stamp = ros.seconds(scan.header.stamp)
-        odom = self.odom.at(stamp)
-        if odom is None or (self.start is None and self.slam is None):
+        odom, raw = self.fused.at(stamp), self.odom.at(stamp)
+        if odom is None or raw is None or (self.start is None and self.slam is None):
             return  # no odometry at the scan's time yet, or not started (waiting for initialpose)
         n = len(scan.ranges)
         angles = scan.angle_min + scan.angle_increment * np.arange(n)
         ranges = np.asarray(scan.ranges, dtype=np.float64)
         kwargs = {"range_min_m": float(scan.range_min), "range_max_m": float(scan.range_max)}
-        odom_xyt = (odom.x, odom.y, odom.theta)
+        # The estimator runs on the gyro-aided odometry (odom_xyt); map → odom is published for the wheels' (raw).
+        odom_xyt, raw_xyt = (odom.x, odom.y, odom.theta), (raw.x, raw.y, raw.theta)
         try:
             if self.localizer is not None:
                 if not self.localizer.initialised:
                     return
                 if self.reanchor and self.map_to_odom is not None:
-                    pose = compose(self.map_to_odom, odom_xyt)
+                    pose = compose(self.map_to_odom, raw_xyt)
                     self.localizer.set_pose(pose, _positive(self._covariance()), odom_xyt)
                 self.reanchor = False
                 est = self.localizer.update(odom_xyt, ranges, angles, **kwargs)
@@ -192,7 +218,7 @@ class SlamService(Service[SlamServiceConfig]):
                 if self.slam is None:
                     self.slam = self._new_slam(odom)
                 elif self.reanchor and self.map_to_odom is not None:
-                    self.slam.reanchor(odom_xyt, compose(self.map_to_odom, odom_xyt))
+                    self.slam.reanchor(odom_xyt, compose(self.map_to_odom, raw_xyt))
                     self.log.info(
                         "odometry restarted: mapping goes on from map -> odom (%.2f, %.2f)", *self.map_to_odom[:2]
                     )
@@ -204,7 +230,7 @@ class SlamService(Service[SlamServiceConfig]):
                 self.log.warning("scan at %.3f s not used (%d so far): %s", stamp, self.failures, exc)
             return
         self.scans += 1
-        self.map_to_odom = np.asarray(est.map_to_odom, dtype=float)
+        self.map_to_odom = np.asarray(compose(compose(est.map_to_odom, odom_xyt), invert(raw_xyt)), dtype=float)
         self.covariance = np.asarray(est.covariance, dtype=float)
 
     def _new_slam(self, odom: Pose2D) -> GraphSlam:

@@ -76,7 +76,8 @@ def test_safe_command_brakes_for_a_wall_and_lets_a_free_command_through() -> Non
 
 def test_safe_command_never_drives_on_into_an_obstacle_it_is_already_too_close_to() -> None:
     """The table-corner case: the robot grazes a corner ahead on its right, inside radius + margin, while turning
-    towards it. Every candidate 'collides' at once; only one that does not approach may go (here: none, stop)."""
+    towards it. Every candidate 'collides' at once; only one that moves and does not approach may go: here backing
+    straight out (a stop would stay stuck there for good); with a wall right behind too, nothing moves."""
     from mjnav.control.collision import _closest_approach
 
     corner = np.array([[0.1, -0.17], [0.15, -0.15], [0.2, -0.12], [0.05, -0.19]])  # ahead right, within 0.2 m
@@ -84,6 +85,9 @@ def test_safe_command_never_drives_on_into_an_obstacle_it_is_already_too_close_t
     assert time_to_collision(0.25, -0.75, corner, still, P) == 0.0
     assert _closest_approach(0.25, -0.75, corner, still, P) < _closest_approach(0.0, 0.0, corner, still, P)
     v, w, ttc = safe_command(0.25, -0.75, corner, still, P)
+    assert (v, w, ttc) == (-0.5 * P.max_speed_mps, 0.0, 0.0)
+    boxed = np.vstack((corner, [[-0.3, 0.0], [-0.3, 0.1], [-0.3, -0.1]]))  # and a wall 0.3 m behind
+    v, w, ttc = safe_command(0.25, -0.75, boxed, np.zeros_like(boxed), P)
     assert (v, w, ttc) == (0.0, 0.0, 0.0)
     # A wall close along the right side, behind the robot's centre: driving on, turning left, moves away: allowed.
     side = np.array([[-0.05, -0.19], [-0.1, -0.2], [-0.15, -0.21], [0.0, -0.2]])

@@ -161,3 +161,32 @@ def test_goal_inside_the_lookahead_circle_steers_with_the_actual_distance() -> N
     assert status.lookahead_point == pytest.approx((0.3, 0.2))
     assert status.lookahead_m == pytest.approx(math.hypot(0.3, 0.2))
     assert status.curvature_invm == pytest.approx(2 * 0.2 / (0.3**2 + 0.2**2))
+
+
+def _chord_distance(start: tuple[float, float], end: tuple[float, float], points: np.ndarray) -> float:
+    """Smallest distance from ``points`` to the segment start → end."""
+    a, seg = np.asarray(start), np.asarray(end) - np.asarray(start)
+    t = np.clip((points - a) @ seg / (seg @ seg), 0.0, 1.0)
+    return float(np.min(np.hypot(*(points - a - t[:, None] * seg).T)))
+
+
+def test_lookahead_shortens_until_its_chord_clears_the_obstacles() -> None:
+    """Around a wall corner the chord to a long lookahead point cuts the corner; with the scan's points the
+    lookahead shrinks until the chord keeps the clearance."""
+    # An L path: along x to (1, 0), then up along y; the wall's corner sits just inside the bend at (0.8, 0.25).
+    path = np.array([[x, 0.0] for x in np.arange(0.0, 1.0, 0.05)] + [[1.0, y] for y in np.arange(0.0, 2.0, 0.05)])
+    corner = np.array([[0.8, 0.25], [0.75, 0.25], [0.8, 0.3]])
+    params = PurePursuitParams(min_lookahead_m=0.3, max_lookahead_m=1.0, lookahead_gain_s=2.0)
+    pose = (0.5, 0.0, 0.0)
+    free = PurePursuit(params)
+    free.compute(pose, 0.5, path)
+    assert free.status.lookahead_m == pytest.approx(1.0, abs=0.01)
+    assert _chord_distance((0.5, 0.0), free.status.lookahead_point, corner) < 0.2  # it cuts the corner
+    pp = PurePursuit(params)
+    pp.compute(pose, 0.5, path, obstacles_xy=corner, chord_clearance_m=0.2)
+    assert pp.status.lookahead_m < 0.75
+    assert _chord_distance((0.5, 0.0), pp.status.lookahead_point, corner) >= 0.2
+    # obstacles far from every chord change nothing
+    far = PurePursuit(params)
+    far.compute(pose, 0.5, path, obstacles_xy=np.array([[5.0, 5.0]]), chord_clearance_m=0.2)
+    assert far.status.lookahead_point == pytest.approx(free.status.lookahead_point)

@@ -285,6 +285,39 @@ def test_controller_stops_without_a_recent_scan(peer: Peer) -> None:
     assert h.received["cmd_vel"][-1].linear.x == 0.0
 
 
+def _send_slam_pose(h: Harness, t: float, map_to_odom: Pose2D, odom: Pose2D, tf_t: float | None = None) -> None:
+    """What the navigation services read on ``pose_source = slam``: SLAM's map → odom on tf and the odometry."""
+    tf_stamp = t if tf_t is None else tf_t
+    h.send("tf", ros.tf_message(ros.transform_stamped(tf_stamp, "map", "odom", map_to_odom)))
+    h.send("odom", ros.odometry(t, odom, 0.0, 0.0))
+
+
+def test_controller_on_slam_composes_map_to_odom_with_fresh_odometry(peer: Peer) -> None:
+    """On SLAM the pose is map→odom (tf) ∘ the newest odometry, as fresh as the odometry; a silent SLAM (stale
+    map→odom) stops the robot although odometry keeps coming."""
+    h = Harness(ControllerService, peer, ("cmd_vel",), pose_source="slam", pose_timeout_s=0.5)
+    # The path runs along y = 1 in map; odom's origin sits at (0, 1) in map, so the robot is on the path heading
+    # along it only when the two are composed (on odometry alone it is 1 m off and turns towards it).
+    line = np.c_[np.linspace(0.0, 3.0, 31), np.ones(31)]
+    h.send("goal_status", _status(1.0, 1, STATUS.STATE_FOLLOWING))
+    h.send("path", ros.path_msg(1.0, "map", line))
+    h.send("scan", _clear_scan(1.0))
+    _send_slam_pose(h, 1.0, map_to_odom=Pose2D(0.0, 1.0, 0.0), odom=Pose2D(0.2, 0.0, 0.0), tf_t=0.95)
+    h.step(1.0, {"cmd_vel": 1})
+    cmd = h.received["cmd_vel"][-1]
+    assert cmd.linear.x > 0.0 and abs(cmd.angular.z) < 1e-6
+    # The same odometry with map → odom 0.3 m to the left of the path: the robot steers right, back onto it.
+    h.send("scan", _clear_scan(1.1))
+    _send_slam_pose(h, 1.1, map_to_odom=Pose2D(0.0, 1.3, 0.0), odom=Pose2D(0.25, 0.0, 0.0))
+    h.step(1.1, {"cmd_vel": 2})
+    assert h.received["cmd_vel"][-1].angular.z < -0.05
+    # SLAM goes silent: odometry alone is not a pose in map; once map → odom is older than pose_timeout_s, stop.
+    h.send("scan", _clear_scan(1.7))
+    h.send("odom", ros.odometry(1.7, Pose2D(0.3, 0.0, 0.0), 0.0, 0.0))
+    h.step(1.7, {"cmd_vel": 3})
+    assert h.received["cmd_vel"][-1].linear.x == 0.0
+
+
 def test_controller_fails_a_goal_without_progress_or_planner(peer: Peer) -> None:
     """Nav2's progress checker: no 0.25 m of motion in 20 s fails the goal with ERROR_TIMEOUT; so does a planner
     whose heartbeat stopped for planner_timeout_s."""
@@ -477,6 +510,25 @@ def test_slam_waits_for_initialpose_then_publishes_pose_map_and_tf(peer: Peer) -
     assert np.all(on_wall >= 65)  # the ring wall is in the map, where it is
 
 
+@pytest.mark.parametrize("use_gyro", [True, False])
+def test_slam_takes_its_heading_from_the_gyro(peer: Peer, use_gyro: bool) -> None:
+    """The wheels report a 0.2 rad turn the gyro does not see (a wrong wheel separation); the scans cannot tell
+    (the robot stands at the centre of a round room). With the gyro SLAM's heading stays; without, it turns."""
+    from mjnav.services.slam import SlamService
+
+    h = Harness(SlamService, peer, ("pose",), use_gyro=use_gyro, initial_pose=(0.0, 0.0, 0.0))
+    centre = Pose2D(0.0, 0.0, 0.0)
+    for k in range(3):
+        t = 0.1 * k
+        for i in range(1, 11 if k and use_gyro else 1):
+            h.send("imu", ros.imu(t - 0.1 + 0.01 * i, "imu", (0, 0, 0, 1), (0.0, 0.0, 0.0), (0.0, 0.0, 9.81)))
+        h.send("odom", ros.odometry(t, Pose2D(0.0, 0.0, 0.1 * k), 0.0, 1.0))
+        h.send("scan", _ring_scan(t, centre, 4.0))
+        h.step(t, {"pose": k + 1})
+    heading = ros.pose_of(h.received["pose"][-1]).theta
+    assert heading == pytest.approx(0.0 if use_gyro else 0.2, abs=0.01)
+
+
 def test_costmap_from_slams_map_with_the_newest_scan_as_obstacle_layer(peer: Peer) -> None:
     h = Harness(
         MapperService,
@@ -491,7 +543,7 @@ def test_costmap_from_slams_map_with_the_newest_scan_as_obstacle_layer(peer: Pee
     static = np.zeros((40, 40), dtype=np.int8)
     static[:, 30] = 100  # a wall at x = 3.0..3.1 in SLAM's map (same frame here)
     h.send("map", _costmap(0.0, static))
-    h.send("pose", ros.pose_with_covariance_stamped(0.0, "map", Pose2D(1.0, 2.0, 0.0), np.eye(3) * 1e-4))
+    _send_slam_pose(h, 0.0, map_to_odom=Pose2D(0.5, 2.0, 0.0), odom=Pose2D(0.5, 0.0, 0.0))  # robot at (1, 2)
     # A box 1 m ahead (x = 2.0) that the map does not have yet: the newest scan's returns mark it.
     scan = ros.laser_scan(
         0.0, "laser", angle_min_rad=-0.1, angle_increment_rad=0.05, scan_time_s=0.1, range_min_m=0.05,

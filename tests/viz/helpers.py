@@ -100,7 +100,7 @@ def snapshot_commands(html_file: Path) -> list[dict[str, Any]]:
 class ViewerClient:
     """A browser stand-in: holds the meshcat WebSocket open and decodes every command the server sends."""
 
-    def __init__(self, web_url: str, timeout_s: float = 10.0) -> None:
+    def __init__(self, web_url: str, timeout_s: float = 60.0) -> None:
         import asyncio
         import threading
 
