@@ -90,7 +90,7 @@ def run_once(
             rtf_got = client.achieved_rtf
             ate = client.ate_rms_m()
             loops = int(json.loads(bus.call("slam_info", timeout_s=10.0).data)["loop_closures"])
-            map_msg = client.map.latest()
+            map_msg = client.final_map()
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(60)

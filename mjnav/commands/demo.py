@@ -347,7 +347,7 @@ def _mission(
             loops = int(json.loads(bus.call("slam_info", timeout_s=5.0).data)["loop_closures"])
         except (NoReply, ValueError, KeyError) as exc:
             print(f"mjnav demo: could not read SLAM's statistics: {exc}", file=log)
-    accuracy = _map_accuracy(info, client.map.latest())
+    accuracy = _map_accuracy(info, client.final_map())  # frozen at the end: sim time may go on
     return MissionSummary(
         reached=len(outcomes) == len(goals) and all(o.result == "reached" for o in outcomes),
         collisions=max(client.collisions(), client.overlaps()),  # an overlap counts even without a contact

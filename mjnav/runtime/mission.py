@@ -64,6 +64,7 @@ class _Track:
     ate_n: int = 0
     measuring: bool = False  # a run_goals job is active: the figures accumulate only then (sim time decides)
     collisions_at_end: int | None = None  # the sim's count when the last job ended
+    map_at_end: Any = None  # the newest ``map`` when the last job ended
 
 
 @dataclass
@@ -206,6 +207,14 @@ class MissionClient(LockstepParticipant):
         with self._lock:
             return self._track.overlaps
 
+    def final_map(self) -> Any:
+        """The newest ``map`` (``nav_msgs/OccupancyGrid``) when the last :meth:`run_goals` ended, whenever this is
+        called (sim time may go on after the job); the newest one before that; None without a map."""
+        with self._lock:
+            if not self._track.measuring and self._track.map_at_end is not None:
+                return self._track.map_at_end
+        return self.map.latest()
+
     def collisions(self) -> int:
         """Collisions counted by the sim: while goals run, so far; after, at the end of the last goal (0 before
         the sim's first status)."""
@@ -312,6 +321,7 @@ class MissionClient(LockstepParticipant):
         """(Under the lock.) The job ended: freeze the figures at this sim time, whenever the caller reads them."""
         msg = self.sim_status.latest()
         self._track.collisions_at_end = 0 if msg is None else int(msg.collisions)
+        self._track.map_at_end = self.map.latest()
         self._track.measuring = False
 
     def run_goal(self, x: float, y: float, *, timeout_s: float, wall_timeout_s: float = math.inf) -> GoalOutcome:
