@@ -303,7 +303,7 @@ def _run(
     if out is not None:
         (out / "summary.json").write_text(jsonsafe.dumps(data, indent=2) + "\n", encoding="utf-8")
         if trace is not None:
-            _plots(trace, goals, info.name, out)
+            _plots(trace, goals, Path(args.world).stem, out)  # the map's name, not world.xml's
     _print_summary(data, out)
     if args.json:
         print(jsonsafe.dumps(data))
