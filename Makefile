@@ -49,7 +49,7 @@ $(STAMP): pyproject.toml
 	    else echo "cannot create a virtual environment: install the Debian package python3-venv"; exit 1; fi; }; \
 	fi
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,bench,foxglove]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,bench,foxglove,plot]'
 	@touch $(STAMP)
 
 system-deps:

@@ -34,8 +34,7 @@ from pathlib import Path
 from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import ros
 from mjnav.runtime.mission import MissionClient
-from mjnav.sim import Simulator
-from mjnav.sim.truth import map_accuracy, shortest_length_m
+from mjnav.sim.truth import FootprintClearance, map_accuracy, shortest_length_m
 from mjnav.sim.worlds import available_worlds, world_info
 
 REPO = Path(__file__).resolve().parent.parent
@@ -72,7 +71,8 @@ def run_once(
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         with Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus:
-            client = MissionClient(bus, name="mission", initial_pose=info.start)  # the operator's initialpose
+            footprint = FootprintClearance(info.path)  # scoring: the robot's disc against the true static map
+            client = MissionClient(bus, name="mission", initial_pose=info.start, clearance=footprint.clearance_m)
             status = bus.subscribe("status", service="*", immediate=True)  # wall-time reports, not staged
             if not wait_until(lambda: set(SERVICES) <= set(bus.alive_services(0.5)), 180.0):
                 raise RuntimeError("the stack did not come up")
@@ -85,12 +85,12 @@ def run_once(
             outcome = client.run_goal(info.goal.x, info.goal.y, timeout_s=300.0, wall_timeout_s=900.0)
             wall = time.monotonic() - wall0
             cpu = {name: (_cpu_s(pid) - cpu0[name]) / wall for name, pid in pids.items()}
-            collisions = client.collisions()
-            clearance = client.min_range_m() - Simulator(info.path, lidar=None).robot_radius_m
+            collisions = max(client.collisions(), client.overlaps())  # an overlap counts as a collision
+            clearance = client.min_clearance_m()
             rtf_got = client.achieved_rtf
             ate = client.ate_rms_m()
             loops = int(json.loads(bus.call("slam_info", timeout_s=10.0).data)["loop_closures"])
-            map_msg = client.map.latest()
+            map_msg = client.final_map()
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(60)

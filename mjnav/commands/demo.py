@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -27,17 +28,38 @@ def register(sub: Any) -> None:
             "send the goal(s), and end with a summary. The robot starts with an unknown map. Exit code 0 only when "
             "every goal was reached. With --json the last stdout line is the summary as JSON: reached, collisions, "
             "time_s (sim), path_length_m (driven), optimal_length_m (shortest collision-free path for the robot's "
-            "radius on the true map), v_max_mps, min_clearance_m, seed, lockstep, final_pose ([x, y, yaw] true pose "
+            "radius on the true map), v_max_mps, min_clearance_m (smallest distance between the robot's footprint, "
+            "the disc of its radius, and the world's static obstacles at the true poses; negative = overlap, "
+            "counted in collisions as well as the sim's contacts), seed, lockstep, final_pose ([x, y, yaw] true pose "
             "in map at the end), wall_s (start-up to the end) and achieved_rtf (sim s per wall s while the robot "
             "drove). The stack runs in lockstep by default: sim time advances only when every service has finished "
             "the step that is due, so the same --seed gives the same run to the last bit on a busy or an idle "
-            "machine."
+            "machine. Any map runs: --world MAP.yaml (a ROS map, e.g. one saved with 'mjnav map save') or MAP.map "
+            "(Moving AI) is turned into a world first (as 'mjnav world from-map'; written to DIR/world.xml with "
+            "--out), with a start and a goal drawn from --seed: a random known-free cell at least 0.5 m from walls "
+            "and unknown space, and a goal 2 to 12 m away in the same connected free region, so it is reachable. "
+            "A scene without a goal (and no --goal) gets its goal drawn the same way from its start."
         ),
         epilog="Example: mjnav demo --world rooms --rtf 4 --out runs/first --record",
     )
-    p.add_argument("--world", default="rooms", help="empty, rooms, maze, warehouse or an MJCF path (default rooms)")
+    p.add_argument(
+        "--world",
+        default="rooms",
+        help="empty, rooms, maze, warehouse, an MJCF path, a ROS map .yaml or a Moving AI .map (default rooms)",
+    )
+    p.add_argument(
+        "--map-resolution",
+        type=float,
+        default=None,
+        metavar="M",
+        help="--world MAP.map: metres per Moving AI cell (default 0.5)",
+    )
     goals = p.add_mutually_exclusive_group()
-    goals.add_argument("--goal", metavar="X,Y", help="goal in the map frame, metres (default: the world's goal)")
+    goals.add_argument(
+        "--goal",
+        metavar="X,Y",
+        help="goal in the map frame, metres; negative values work (--goal -3,2) (default: the world's goal)",
+    )
     goals.add_argument("--goals", metavar="FILE", help='JSON list of goals: [[x, y], …] or [{"x": …, "y": …}, …]')
     p.add_argument(
         "--rtf",
@@ -63,7 +85,12 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--headless", action="store_true", help="open no browser or window")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on the last stdout line")
-    p.add_argument("--out", metavar="DIR", help="write summary.json, the final map (PGM + YAML) and the video here")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write summary.json, the final map (map.yaml + map.pgm), run.png (map, true and estimated trajectories, "
+        "plans, path, goals), speed.png (commanded and measured speed over sim time), scene.html and the video here",
+    )
     p.add_argument(
         "--timeout", type=float, default=240.0, metavar="S", help="sim seconds allowed per goal (default 240)"
     )
@@ -105,31 +132,89 @@ def _parse_goals(args: argparse.Namespace, default: Any) -> list[tuple[float, fl
     return [(default.x, default.y)]
 
 
+#: World arguments that are map files, turned into a world before the run.
+MAP_SUFFIXES = (".yaml", ".yml", ".map")
+#: Distance (m) the automatically chosen start and goal keep from walls and unknown space.
+AUTO_CLEARANCE_M = 0.5
+#: Straight-line distance band (m) between the automatically chosen start and goal.
+AUTO_GOAL_DISTANCE_M = (2.0, 12.0)
+
+
+def world_from_map(map_path: str, scene: Path, seed: int, resolution_m: float | None) -> Path:
+    """Write the world of a ROS or Moving AI map to ``scene`` with a start and goal drawn from ``seed``.
+
+    Raises:
+        MapConversionError: unreadable map, or no room for the robot.
+    """
+    import numpy as np
+
+    from mjnav.sim.worldgen import write_scene_from_map
+
+    lo, hi = AUTO_GOAL_DISTANCE_M
+    summary = write_scene_from_map(
+        map_path,
+        scene,
+        resolution_m=resolution_m,
+        clearance_m=AUTO_CLEARANCE_M,
+        rng=np.random.default_rng(seed),
+        min_distance_m=lo,
+        max_distance_m=hi,
+    )
+    return summary.path
+
+
+def reachable_goal(info: Any, seed: int) -> Any:
+    """A goal drawn from ``seed`` that the robot can reach from the world's start on its true static map.
+
+    Raises:
+        MapConversionError: no free cell with the clearance is reachable from the start.
+    """
+    import numpy as np
+
+    from mjnav.sim.truth import true_grid
+    from mjnav.sim.worldgen import GridMap, choose_goal
+
+    lo, hi = AUTO_GOAL_DISTANCE_M
+    occupied, frame = true_grid(info.path, border_m=1.0 if info.bounds_m is not None else hi)  # open world: room
+    grid = GridMap(occupied, frame.resolution_m, (frame.origin_m[0], frame.origin_m[1], 0.0), info.name)
+    rng = np.random.default_rng(seed)
+    return choose_goal(grid, info.start, AUTO_CLEARANCE_M, rng, min_distance_m=lo, max_distance_m=hi)
+
+
 def run(args: argparse.Namespace) -> int:
     """``mjnav demo``."""
-    from mjnav.bus import Bus, BusConfig, BusConfigError
-    from mjnav.bus.acl import AclError
-    from mjnav.bus.config import tls_files
-    from mjnav.msgs.topics import OPERATOR
     from mjnav.runtime.config import ConfigError
-    from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
     from mjnav.runtime.stack import add_service_overrides, load_stack
+    from mjnav.sim.errors import SimError
     from mjnav.sim.worlds import world_info
 
     setup_logging(args.log_level)
+    scratch: tempfile.TemporaryDirectory[str] | None = None
     try:
-        info = world_info(args.world)
-        goals = _parse_goals(args, info.goal)
+        out = Path(args.out) if args.out else None
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+        world: str | Path = args.world
+        if Path(args.world).suffix.lower() in MAP_SUFFIXES:
+            folder = out
+            if folder is None:
+                scratch = tempfile.TemporaryDirectory(prefix="mjnav-demo-")
+                folder = Path(scratch.name)
+            world = world_from_map(args.world, folder / "world.xml", args.seed, args.map_resolution)
+        elif args.map_resolution is not None:
+            raise ValueError("--map-resolution applies to a Moving AI --world MAP.map only")
+        info = world_info(world)
+        default_goal = info.goal
+        if default_goal is None and not (args.goal or args.goals):
+            default_goal = reachable_goal(info, args.seed)
+        goals = _parse_goals(args, default_goal)
         if any(not (math.isfinite(x) and math.isfinite(y)) for x, y in goals):
             raise ValueError("goals must be finite numbers")
         rtf = 0.0 if args.rtf.strip().lower() == "max" else float(args.rtf)
         if not (math.isfinite(rtf) and rtf >= 0):
             raise ValueError(f"--rtf must be a positive number or 'max', got {args.rtf!r}")
         stack = load_stack(args.stack)
-        out = Path(args.out) if args.out else None
-        if out is not None:
-            out.mkdir(parents=True, exist_ok=True)
         overrides: dict[str, list[str]] = {"sim": [f"world={json.dumps(str(info.path))}", f"rtf={rtf}"]}
         if args.record is not None:
             video = Path(args.record) if args.record else (out / "video.mp4" if out else None)
@@ -141,9 +226,34 @@ def run(args: argparse.Namespace) -> int:
         if out is not None and "viz" in stack.names():
             overrides.setdefault("viz", []).append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
         add_service_overrides(stack, args.set, overrides)
-    except (ConfigError, ValueError, OSError, LookupError) as exc:  # LookupError: an unknown world
+    except (ConfigError, ValueError, OSError, LookupError, SimError) as exc:  # LookupError: an unknown world
         print(f"mjnav demo: {exc}", file=sys.stderr)
+        if scratch is not None:
+            scratch.cleanup()
         return 2
+    try:
+        return _run(args, stack, overrides, info, goals, rtf, out)
+    finally:
+        if scratch is not None:
+            scratch.cleanup()
+
+
+def _run(
+    args: argparse.Namespace,
+    stack: Any,
+    overrides: dict[str, list[str]],
+    info: Any,
+    goals: list[tuple[float, float]],
+    rtf: float,
+    out: Path | None,
+) -> int:
+    from mjnav.bus import Bus, BusConfig, BusConfigError
+    from mjnav.bus.acl import AclError
+    from mjnav.bus.config import tls_files
+    from mjnav.msgs.topics import OPERATOR
+    from mjnav.runtime.config import ConfigError
+    from mjnav.runtime.launcher import Launcher
+    from mjnav.runtime.trace import TraceRecorder
 
     wall0 = time.monotonic()
     try:
@@ -171,9 +281,12 @@ def run(args: argparse.Namespace) -> int:
     thread = threading.Thread(target=lambda: codes.append(launcher.run(install_signals=False)), daemon=True)
     thread.start()
     summary = None
+    trace = None
     try:
         with Bus.open(bus_config, stack.namespace) as bus:
+            recorder = TraceRecorder(bus) if out is not None else None
             summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
+            trace = recorder.trace() if recorder is not None else None
             summary.seed = args.seed
             summary.lockstep = not args.free_running
             summary.wall_s = time.monotonic() - wall0
@@ -189,6 +302,8 @@ def run(args: argparse.Namespace) -> int:
     data = summary.to_dict()
     if out is not None:
         (out / "summary.json").write_text(jsonsafe.dumps(data, indent=2) + "\n", encoding="utf-8")
+        if trace is not None:
+            _plots(trace, goals, Path(args.world).stem, out)  # the map's name, not world.xml's
     _print_summary(data, out)
     if args.json:
         print(jsonsafe.dumps(data))
@@ -202,7 +317,10 @@ def _mission(
     from mjnav.runtime.mission import MissionClient, MissionSummary
 
     log = sys.stderr
-    client = MissionClient(bus, name=MISSION, initial_pose=info.start)  # the operator's initialpose
+    from mjnav.sim.truth import FootprintClearance
+
+    footprint = FootprintClearance(info.path)  # scoring only: the true static map
+    client = MissionClient(bus, name=MISSION, initial_pose=info.start, clearance=footprint.clearance_m)
     if not wait_until(lambda: set(services) <= set(bus.alive_services(0.5)), 180.0):
         raise RuntimeError(f"services did not come up within 180 s (alive: {bus.alive_services(0.5)})")
     v_max = math.nan
@@ -222,7 +340,6 @@ def _mission(
             file=log,
         )
     optimal = _optimal_length(info, outcomes)
-    radius = _robot_radius(info)
     pose = client.final_pose
     loops: int | None = None
     if "slam" in services:
@@ -230,15 +347,15 @@ def _mission(
             loops = int(json.loads(bus.call("slam_info", timeout_s=5.0).data)["loop_closures"])
         except (NoReply, ValueError, KeyError) as exc:
             print(f"mjnav demo: could not read SLAM's statistics: {exc}", file=log)
-    accuracy = _map_accuracy(info, client.map.latest())
+    accuracy = _map_accuracy(info, client.final_map())  # frozen at the end: sim time may go on
     return MissionSummary(
         reached=len(outcomes) == len(goals) and all(o.result == "reached" for o in outcomes),
-        collisions=client.collisions(),
+        collisions=max(client.collisions(), client.overlaps()),  # an overlap counts even without a contact
         time_s=sum(o.time_s for o in outcomes),
         path_length_m=sum(o.path_length_m for o in outcomes),
         optimal_length_m=optimal,
         v_max_mps=v_max,
-        min_clearance_m=client.min_range_m() - radius,
+        min_clearance_m=client.min_clearance_m(),
         goals=[o.__dict__ for o in outcomes],
         final_pose=None if pose is None else [pose.x, pose.y, pose.theta],
         achieved_rtf=client.achieved_rtf,
@@ -260,12 +377,6 @@ def _map_accuracy(info: Any, msg: Any) -> list[float] | None:
     return list(map_accuracy(info.path, cells, frame))
 
 
-def _robot_radius(info: Any) -> float:
-    from mjnav.sim import Simulator
-
-    return float(Simulator(info.path, lidar=None).robot_radius_m)
-
-
 def _optimal_length(info: Any, outcomes: list[Any]) -> float:
     """Sum over the goals of the shortest collision-free path on the true map (NaN when it cannot be computed)."""
     from mjnav.planning import PlanningError
@@ -277,6 +388,17 @@ def _optimal_length(info: Any, outcomes: list[Any]) -> float:
         return math.nan
 
 
+def _plots(trace: Any, goals: list[tuple[float, float]], world: str, out: Path) -> None:
+    """Write ``run.png`` and ``speed.png`` (matplotlib, the ``plot`` extra; without it, say so and go on)."""
+    try:
+        from mjnav.viz.plots import plot_run, plot_speed
+    except ImportError as exc:
+        print(f"mjnav demo: no plots ({exc}); install the plot extra: pip install 'mjnav[plot]'", file=sys.stderr)
+        return
+    plot_run(trace, out / "run.png", goals, title=f"{world}: true (solid) and estimated (dashed) trajectories")
+    plot_speed(trace, out / "speed.png", title=f"{world}: speed")
+
+
 def _print_summary(data: dict[str, Any], out: Path | None) -> None:
     lines = [
         f"reached: {data['reached']}   collisions: {data['collisions']}",
@@ -286,6 +408,7 @@ def _print_summary(data: dict[str, Any], out: Path | None) -> None:
         f"   map accuracy (recall, precision): {data['map_accuracy']}",
     ]
     if out is not None:
-        extra = "".join(f", {name}" for name in ("video.mp4", "scene.html") if (out / name).exists())
+        names = ("run.png", "speed.png", "video.mp4", "scene.html", "world.xml")
+        extra = "".join(f", {name}" for name in names if (out / name).exists())
         lines.append(f"files in {out}: summary.json, map.yaml + map.pgm{extra}")
     print("\n".join(lines), file=sys.stderr)

@@ -83,8 +83,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         default=None,
         help="drive with a constant command (m/s, rad/s), re-sent at 10 Hz as a controller would",
     )
-    p.add_argument("--lidar-beams", type=int, default=360, help="lidar beams per scan (default 360)")
-    p.add_argument("--lidar-rate", type=float, default=10.0, help="lidar scans per sim second (default 10)")
+    p.add_argument(
+        "--lidar-beams", type=int, default=None, help="lidar beams per scan (default: the robot model's, 360)"
+    )
+    p.add_argument(
+        "--lidar-rate", type=float, default=None, help="lidar scans per sim second (default: the robot model's, 10)"
+    )
     p.add_argument("--record", metavar="MP4", default=None, help="also record an H.264 video to this file")
     p.add_argument("--record-fps", type=float, default=30.0, help="video frame rate (default 30)")
     p.add_argument("--camera", default="top", help="video camera: top, follow or a model camera (default top)")
@@ -96,10 +100,19 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def build_simulator(args: argparse.Namespace) -> Simulator:
     """The :class:`~mjnav.sim.Simulator` described by the parsed arguments."""
-    from mjnav.sim import LidarConfig, Simulator
+    from dataclasses import replace
 
-    lidar = LidarConfig(num_beams=args.lidar_beams, rate_hz=args.lidar_rate)
-    return Simulator(args.world, seed=args.seed, lidar=lidar)
+    from mjnav.sim import Simulator
+
+    sim = Simulator(args.world, seed=args.seed)
+    changes = {
+        name: value
+        for name, value in (("num_beams", args.lidar_beams), ("rate_hz", args.lidar_rate))
+        if value is not None
+    }
+    if not changes or sim.lidar_config is None:
+        return sim
+    return Simulator(args.world, seed=args.seed, lidar=replace(sim.lidar_config, **changes))
 
 
 def command_hook(v_mps: float, omega_radps: float) -> Callable[[Simulator], None]:
@@ -134,9 +147,7 @@ def run(args: argparse.Namespace) -> int:
             runner.add_hook(hook, period)
         if not args.no_bus:
             bus = Bus.open(bus_config_from_args(args), args.ns)
-            config = SimConfig(
-                world=args.world, seed=args.seed, lidar_beams=args.lidar_beams, lidar_rate_hz=args.lidar_rate
-            )
+            config = SimConfig(world=args.world, seed=args.seed)
             bridge = SimBridge(sim, bus, config)
             bridge.attach(runner)
         recorder = None

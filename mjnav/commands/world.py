@@ -42,7 +42,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "Read an occupancy grid, merge its occupied cells into few boxes (greedy rectangles), add a "
             "floor and the robot, and write one self-contained MJCF scene. ROS maps keep their resolution "
             "and origin (the world frame is the map frame); Moving AI cells become --resolution metres with "
-            "row 0 at the top (highest y). Start and goal are picked automatically unless given."
+            "row 0 at the top (highest y). Start and goal are picked automatically unless given, in known free "
+            "space (a saved map's unknown outside is never picked). mjnav demo --world MAP does this itself, with "
+            "a start and goal drawn from --seed."
         ),
     )
     fm.add_argument("map", metavar="MAP", help="ROS map YAML (with its image) or Moving AI .map file")

@@ -373,6 +373,15 @@ ENDPOINTS: dict[str, Endpoint] = {
             per_service=True,
         ),
         Endpoint(
+            "set_param",
+            "std_msgs/msg/String",
+            "std_msgs/msg/String",
+            "every service",
+            'Set one runtime-settable config key (`mjnav param set`); request: JSON {"key", "value"}, validated like '
+            'the TOML file; reply: JSON {"key", "value", "previous"}, applied before the next step',
+            per_service=True,
+        ),
+        Endpoint(
             "slam_info",
             "std_msgs/msg/String",
             "std_msgs/msg/String",
@@ -449,6 +458,7 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
 #: Who may serve (answer) each endpoint when access control is on.
 SERVE_RIGHTS: dict[str, tuple[str, ...]] = {
     "config": (OWN,),
+    "set_param": (OWN,),
     "save_map": ("mapper",),
     "slam_info": ("slam",),
     "navigate": ("planner",),
@@ -456,6 +466,7 @@ SERVE_RIGHTS: dict[str, tuple[str, ...]] = {
 #: Who may call each endpoint when access control is on (only an operator makes the mapper write files).
 CALL_RIGHTS: dict[str, tuple[str, ...]] = {
     "config": (ANYONE,),
+    "set_param": (OPERATOR,),
     "save_map": (OPERATOR,),
     "slam_info": (ANYONE,),
     "navigate": (OPERATOR,),

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -54,12 +55,16 @@ class _Track:
     length_m: float = 0.0
     last: Pose2D | None = None
     min_range_m: float = math.inf
+    min_clearance_m: float = math.inf  # footprint-to-obstacle distance at the true poses (with a clearance model)
+    overlaps: int = 0  # times the footprint went from clear to overlapping an obstacle
+    overlapping: bool = False
     statuses: list[Any] = field(default_factory=list)
     truth: PoseHistory = field(default_factory=lambda: PoseHistory(horizon_s=2.0))
     ate_sq_sum: float = 0.0  # Σ |estimated − true position|², over every estimate received while measuring
     ate_n: int = 0
     measuring: bool = False  # a run_goals job is active: the figures accumulate only then (sim time decides)
     collisions_at_end: int | None = None  # the sim's count when the last job ended
+    map_at_end: Any = None  # the newest ``map`` when the last job ended
 
 
 @dataclass
@@ -98,9 +103,14 @@ class MissionClient(LockstepParticipant):
         period_s: float = 0.05,
         initial_pose: Pose2D | None = None,
         initial_sigma: tuple[float, float] = (0.05, 0.05),
+        clearance: Callable[[float, float], float] | None = None,
     ) -> None:
         """``initial_pose``: sent on ``initialpose`` (σ ``initial_sigma`` = (m, rad)) in the client's first step,
-        before the first goal, as an operator tells the robot where it starts (what SLAM starts from)."""
+        before the first goal, as an operator tells the robot where it starts (what SLAM starts from).
+        ``clearance``: footprint-to-obstacle distance (m) of the robot at a true position (x, y), e.g.
+        :meth:`mjnav.sim.truth.FootprintClearance.clearance_m`; evaluated at every ``truth`` pose while goals run
+        (:meth:`min_clearance_m`, :meth:`overlaps`)."""
+        self._clearance = clearance
         self._init_participant(bus, name, period_s)
         self._initial: Any = None
         if initial_pose is not None:
@@ -133,6 +143,12 @@ class MissionClient(LockstepParticipant):
             if t.last is not None and t.measuring:
                 t.length_m += t.last.distance_to(pose)
             t.last = pose
+            if self._clearance is not None and t.measuring:
+                c = self._clearance(pose.x, pose.y)
+                t.min_clearance_m = min(t.min_clearance_m, c)
+                if c < 0.0 and not t.overlapping:
+                    t.overlaps += 1
+                t.overlapping = c < 0.0
 
     def _on_estimate(self, msg: Any) -> None:
         """Absolute trajectory error of SLAM's ``pose`` against the true pose at its stamp."""
@@ -178,6 +194,26 @@ class MissionClient(LockstepParticipant):
         """Smallest valid lidar range seen while goals ran, metres (inf when none)."""
         with self._lock:
             return self._track.min_range_m
+
+    def min_clearance_m(self) -> float:
+        """Smallest footprint-to-obstacle distance at the true poses received while goals ran, metres (NaN without
+        a ``clearance`` model or before any pose); negative: the footprint overlapped an obstacle."""
+        with self._lock:
+            c = self._track.min_clearance_m
+            return c if math.isfinite(c) else math.nan
+
+    def overlaps(self) -> int:
+        """How many times the footprint went from clear to overlapping an obstacle while goals ran."""
+        with self._lock:
+            return self._track.overlaps
+
+    def final_map(self) -> Any:
+        """The newest ``map`` (``nav_msgs/OccupancyGrid``) when the last :meth:`run_goals` ended, whenever this is
+        called (sim time may go on after the job); the newest one before that; None without a map."""
+        with self._lock:
+            if not self._track.measuring and self._track.map_at_end is not None:
+                return self._track.map_at_end
+        return self.map.latest()
 
     def collisions(self) -> int:
         """Collisions counted by the sim: while goals run, so far; after, at the end of the last goal (0 before
@@ -285,6 +321,7 @@ class MissionClient(LockstepParticipant):
         """(Under the lock.) The job ended: freeze the figures at this sim time, whenever the caller reads them."""
         msg = self.sim_status.latest()
         self._track.collisions_at_end = 0 if msg is None else int(msg.collisions)
+        self._track.map_at_end = self.map.latest()
         self._track.measuring = False
 
     def run_goal(self, x: float, y: float, *, timeout_s: float, wall_timeout_s: float = math.inf) -> GoalOutcome:

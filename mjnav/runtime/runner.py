@@ -22,7 +22,7 @@ from typing import Any, Protocol
 
 from mjnav.bus import Bus, BusConfig
 from mjnav.msgs import msg_class, ros
-from mjnav.runtime.config import config_to_dict
+from mjnav.runtime.config import build_config, config_to_dict
 from mjnav.runtime.service import Service
 
 #: Wall seconds between status messages.
@@ -182,6 +182,8 @@ class ServiceRunner:
         self._state = "unconfigured"
         self._started = time.monotonic()
         self._signals = 0
+        self._config_lock = threading.Lock()
+        self._next_config: Any = None  # a config set through set_param, swapped in before the next step
 
     # ---------------------------------------------------------------------------------------------- signals
 
@@ -238,6 +240,7 @@ class ServiceRunner:
         status_pub = bus.publisher("status", service=self.name)
         string = msg_class("std_msgs/msg/String")
         bus.serve("config", lambda _req: string(data=json.dumps(config_to_dict(self.config))), service=self.name)
+        bus.serve("set_param", lambda req: string(data=json.dumps(self._set_param(req.data))), service=self.name)
         clock: _WallClock | _SimClock = _SimClock(bus) if self.use_sim_time else _WallClock()
 
         service = self.service_cls(self.config, bus, self.log)
@@ -293,6 +296,7 @@ class ServiceRunner:
                 if missed > 0:
                     self.stats.overruns += missed
                     next_tick = now
+                self._apply_config(service)
                 self._step(service, now)
                 next_tick += period
                 if lockstep is not None:
@@ -305,6 +309,44 @@ class ServiceRunner:
                 status_pub.put(self._status_msg(bus, clock.now()))
         self.log.info("stopped after %d steps", self.stats.steps)
         return 0
+
+    def _set_param(self, request: str) -> dict[str, Any]:
+        """``set_param``: request JSON ``{"key": K, "value": V}``; validates V like the TOML file (type, range) for a
+        key of the service's ``runtime_settable`` and queues the new config for the next step. Returns
+        ``{"key", "value", "previous"}``.
+
+        Raises:
+            ValueError: malformed request, a key that is not settable at runtime, or a value the config rejects
+                (the caller gets an error reply naming it).
+        """
+        try:
+            data = json.loads(request)
+            key, value = data["key"], data["value"]
+        except (ValueError, TypeError, KeyError) as exc:
+            raise ValueError(f'request must be JSON {{"key": ..., "value": ...}}: {exc}') from None
+        settable = sorted(self.service_cls.runtime_settable)
+        if key not in settable:
+            raise ValueError(
+                f"{self.name}.{key} cannot be set while running; settable: {', '.join(settable) or 'none'}"
+            )
+        with self._config_lock:
+            current = self._next_config if self._next_config is not None else self.config
+            values = config_to_dict(current)
+            previous = values[key]
+            values[key] = value
+            new = build_config(type(current), values, where=f"{self.name}.{key}")  # ConfigError is a ValueError
+            self._next_config = new
+        return {"key": key, "value": config_to_dict(new)[key], "previous": previous}
+
+    def _apply_config(self, service: Service[Any]) -> None:
+        """Swap in a config set through ``set_param`` (between two steps, in the loop's thread)."""
+        with self._config_lock:
+            new, self._next_config = self._next_config, None
+        if new is None:
+            return
+        changed = {k: v for k, v in config_to_dict(new).items() if config_to_dict(self.config)[k] != v}
+        self.config = service.config = new
+        self.log.info("parameters set: %s", ", ".join(f"{k} = {v!r}" for k, v in changed.items()) or "no change")
 
     def _step(self, service: Service[Any], now: float) -> None:
         t0 = time.perf_counter()

@@ -35,11 +35,15 @@ class Service(Generic[ConfigT]):
         state_dir: a directory that outlives the process for the whole run (``$MJNAV_STATE_DIR``; ``mjnav up``
             makes one per run and removes it at the end): checkpoints a restarted service resumes from (the
             mapper's map, the planner's goal). None when the service runs on its own.
+        runtime_settable: config keys that ``mjnav param set`` may change while the service runs (endpoint
+            ``<ns>/set_param/<service>``): only keys the service reads from ``self.config`` whenever it uses them.
+            The runner validates the new config like the TOML file and swaps ``self.config`` between two steps.
     """
 
     name: ClassVar[str] = ""
     config_class: ClassVar[type[Any]]
     uses_sim_time: ClassVar[bool] = True
+    runtime_settable: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, config: ConfigT, bus: Bus, log: logging.Logger) -> None:
         self.config = config

@@ -43,10 +43,12 @@ class MapperConfig:
         pose_source: ``slam`` (SLAM's ``map → odom`` ∘ odometry, :mod:`mjnav.runtime.pose`), ``ground_truth``
             (true pose) or ``odom`` (drifting).
         obstacle_range_m: the obstacle layer marks the newest scan's returns up to this range (slam mode).
-        width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)).
-        laser_offset_m: lidar position in base_link (x, y), metres.
+        width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)); ``mjnav
+            up`` sizes it to the sim's world (:meth:`mjnav.runtime.launcher.Launcher._settings_from_world`).
+        laser_offset_m: lidar position in base_link (x, y), metres (``mjnav up``: the robot model's lidar site).
         max_range_m: readings at or beyond this are "no return" (free up to it).
-        robot_radius_m: inscribed radius for the costmap's lethal inflation.
+        robot_radius_m: inscribed radius for the costmap's lethal inflation (``mjnav up``: the robot model's
+            footprint radius).
         inflation_radius_m: cost decays to 0 at this distance from obstacles (0.7 left a 1.4 m corridor one
             zero-cost line, its centre: paths 20 % longer than the shortest in the maze; 0.5, near Nav2's 0.55,
             leaves a band to round corners in).
@@ -69,7 +71,7 @@ class MapperConfig:
     origin_m: tuple[float, float] = (-10.0, -10.0)
     laser_offset_m: tuple[float, float] = (0.0, 0.0)
     max_range_m: float = 12.0
-    robot_radius_m: float = 0.2
+    robot_radius_m: float = 0.19
     inflation_radius_m: float = 0.5
     cost_scaling_factor: float = 5.0
     prior_map: str = ""
@@ -94,6 +96,8 @@ class MapperService(Service[MapperConfig]):
 
     name = "mapper"
     config_class = MapperConfig
+    #: Read from ``self.config`` at every use: ``mjnav param set mapper KEY VALUE`` changes them while running.
+    runtime_settable = frozenset({"inflation_radius_m", "cost_scaling_factor", "publish_rate_hz", "obstacle_range_m"})
 
     def configure(self) -> None:
         cfg = self.config

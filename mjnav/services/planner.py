@@ -130,6 +130,8 @@ class PlannerService(Service[PlannerConfig]):
 
     name = "planner"
     config_class = PlannerConfig
+    #: Read from ``self.config`` at every use: ``mjnav param set planner KEY VALUE`` changes them while running.
+    runtime_settable = frozenset({"algorithm", "heuristic", "cost_weight", "unknown_cost", "replan_period_s"})
 
     def configure(self) -> None:
         # Goals, cancels and accepted navigate requests, in arrival order: ("goal", msg, id or 0) / ("cancel", …).
@@ -360,7 +362,12 @@ class PlannerService(Service[PlannerConfig]):
             )
         except PlanningError as exc:
             error = next((code for cls, code in _ERRORS if isinstance(exc, cls)), "ERROR_INTERNAL")
-            self._end(now, "FAILED", error, str(exc))
+            # In metres first (what the operator gave), the planner's cells in parentheses.
+            where = (
+                f"from ({robot.x:.2f}, {robot.y:.2f}) m to ({goal.pose.x:.2f}, {goal.pose.y:.2f}) m "
+                f"(cells {start} -> {target}, {frame.resolution_m:g} m each)"
+            )
+            self._end(now, "FAILED", error, f"{where}: {exc}")
             return
         goal.last_plan_t = now
         # On a periodic check keep the current route unless the new one is clearly cheaper.

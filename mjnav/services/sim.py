@@ -28,6 +28,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
@@ -61,10 +63,11 @@ class SimConfig:
             moving bodies publish none.
         watchdog_timeout_s: zero the wheels when the newest command is this old (sim seconds).
         teleop_timeout_s: ``cmd_vel_teleop`` overrides ``cmd_vel`` until it has been silent this long (sim seconds).
-        lidar_beams, lidar_rate_hz, lidar_range_min_m, lidar_range_max_m, lidar_noise_std_m: the lidar.
         record_path: write an MP4 of the run here ("" = no recording).
         record_fps: video frame rate (frames per sim second).
-        record_camera: ``top`` or ``follow``.
+        record_camera: ``follow`` (a chase camera behind the robot, the default) or ``top`` (the whole world).
+            Either way the video shows the map, plan, path, goal and driven trail over the world
+            (:class:`mjnav.sim.recording.Overlay`).
         lockstep: advance only when every participant finished its due step (False: free-running on wall time).
         lockstep_participants: participants that must be present before sim time starts (``mjnav up`` fills in the
             stack's sim-time services, ``mjnav demo`` adds its mission client).
@@ -85,14 +88,9 @@ class SimConfig:
     obstacles_rate_hz: float = 10.0
     watchdog_timeout_s: float = 0.5
     teleop_timeout_s: float = 0.5
-    lidar_beams: int = 360
-    lidar_rate_hz: float = 10.0
-    lidar_range_min_m: float = 0.12
-    lidar_range_max_m: float = 12.0
-    lidar_noise_std_m: float = 0.01
     record_path: str = ""
     record_fps: float = 30.0
-    record_camera: str = "top"
+    record_camera: str = "follow"
     lockstep: bool = True
     lockstep_participants: tuple[str, ...] = ()
     lockstep_timeout_s: float = 10.0
@@ -171,7 +169,8 @@ class SimBridge:
         self._status = _Every(SIM_STATUS_RATE_HZ)
         self._sim_status = msg_class("mjnav_msgs/msg/SimStatus")
         self.wall0 = time.monotonic()
-        self._scan_time_s = 1.0 / config.lidar_rate_hz
+        lidar = sim.lidar_config
+        self._scan_time_s = 1.0 / lidar.rate_hz if lidar is not None else math.inf
         self.commands_applied = 0
 
     @property
@@ -284,18 +283,29 @@ class SimService(Service[SimConfig]):
     config_class = SimConfig
     uses_sim_time = False
 
+    def _record_frame(self, sim: Any) -> None:
+        """Runner hook: refresh the video's overlay from the newest navigation messages, then capture a frame."""
+        ov = self.recorder.overlay
+        subs = self._overlay_subs
+        grid = subs["map"].take()
+        if grid is not None:
+            cells, frame = ros.grid_frame(grid)
+            ov.set_map(cells, frame.origin_m, frame.resolution_m)
+        for name in ("plan", "path"):
+            msg = subs[name].take()
+            if msg is not None:
+                pts = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+                setattr(ov, name, np.asarray(pts, dtype=np.float64).reshape(-1, 2))
+        for status in subs["goal_status"].drain():
+            position = status.goal.pose.position
+            ov.goal = (float(position.x), float(position.y))
+        self.recorder.capture()
+
     def configure(self) -> None:
-        from mjnav.sim import LidarConfig, Recorder, SimRunner, Simulator
+        from mjnav.sim import Recorder, SimRunner, Simulator
         from mjnav.sim.odometry import OdometryConfig
 
         cfg = self.config
-        lidar = LidarConfig(
-            num_beams=cfg.lidar_beams,
-            rate_hz=cfg.lidar_rate_hz,
-            range_min_m=cfg.lidar_range_min_m,
-            range_max_m=cfg.lidar_range_max_m,
-            noise_std_m=cfg.lidar_noise_std_m,
-        )
         base = OdometryConfig()
         k = cfg.odom_noise_scale
         odometry = replace(
@@ -304,9 +314,7 @@ class SimService(Service[SimConfig]):
             wheel_separation_error_std=k * base.wheel_separation_error_std,
             slip_noise_std=k * base.slip_noise_std,
         )
-        self.sim = Simulator(
-            cfg.world, seed=cfg.seed, lidar=lidar, odometry=odometry, watchdog_timeout_s=cfg.watchdog_timeout_s
-        )
+        self.sim = Simulator(cfg.world, seed=cfg.seed, odometry=odometry, watchdog_timeout_s=cfg.watchdog_timeout_s)
         self.bridge = SimBridge(self.sim, self.bus, cfg)
         self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
         self.bridge.attach(self.runner)
@@ -318,9 +326,17 @@ class SimService(Service[SimConfig]):
         self.recorder: Any = None
         if cfg.record_path:
             self.recorder = Recorder(
-                self.sim.model, self.sim.data, Path(cfg.record_path), fps=cfg.record_fps, camera=cfg.record_camera
+                self.sim.model,
+                self.sim.data,
+                Path(cfg.record_path),
+                fps=cfg.record_fps,
+                camera=cfg.record_camera,
+                track_body=self.sim.robot.root_body,
             )
-            self.recorder.add_to(self.runner)
+            # What navigation knows goes into the video: the map, the plan, the path, the goal (and the trail).
+            self._overlay_subs = {name: self.bus.subscribe(name) for name in ("map", "plan", "path", "goal_status")}
+            self.recorder.overlay.track_trail = True
+            self.runner.add_hook(self._record_frame, 1.0 / cfg.record_fps)
         start: Pose2D = self.sim.start_pose
         self.log.info(
             "world %s, start (%.2f, %.2f, %.2f), rtf %s, %s",

@@ -75,6 +75,8 @@ class SmootherService(Service[SmootherConfig]):
 
     name = "smoother"
     config_class = SmootherConfig
+    #: Read from ``self.config`` at every use: ``mjnav param set smoother KEY VALUE`` changes them while running.
+    runtime_settable = frozenset({"method", "max_deviation_m", "w_smooth", "w_data", "spacing_m"})
 
     def configure(self) -> None:
         self.plan = self.bus.subscribe("plan")

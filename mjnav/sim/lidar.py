@@ -110,6 +110,49 @@ class LidarScan:
         return np.column_stack((r * np.cos(a), r * np.sin(a)))
 
 
+#: Numerics of the robot model that set the lidar (``mjcf/diffbot.xml``), by :class:`LidarConfig` field.
+LIDAR_NUMERICS: dict[str, str] = {
+    "num_beams": "lidar_beams",
+    "rate_hz": "lidar_rate_hz",
+    "range_min_m": "lidar_range_min_m",
+    "range_max_m": "lidar_range_max_m",
+    "noise_std_m": "lidar_noise_std_m",
+    "fov_rad": "lidar_fov_rad",
+}
+
+
+def lidar_config_from_model(model: mujoco.MjModel, prefix: str = "") -> LidarConfig:
+    """The lidar the robot model declares: its ``lidar_*`` custom numerics (:data:`LIDAR_NUMERICS`, each one
+    value, names carrying the robot's attach ``prefix``); a numeric the model lacks keeps :class:`LidarConfig`'s
+    default.
+
+    Raises:
+        ValueError: a numeric with other than one value, or values :class:`LidarConfig` rejects.
+    """
+    values: dict[str, float] = {}
+    for field_name, numeric in LIDAR_NUMERICS.items():
+        nid = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, prefix + numeric))
+        if nid < 0:
+            continue
+        if int(model.numeric_size[nid]) != 1:
+            raise ValueError(f"numeric {prefix + numeric} needs exactly one value")
+        values[field_name] = float(model.numeric_data[int(model.numeric_adr[nid])])
+    default = LidarConfig()
+    if _TWO_PI < values.get("fov_rad", 0.0) <= _TWO_PI + 1e-4:  # 2π as a file rounds it (MjSpec.to_xml: 6.28319)
+        values["fov_rad"] = _TWO_PI
+    beams = values.get("num_beams", float(default.num_beams))
+    if beams != int(beams):
+        raise ValueError(f"numeric {prefix}lidar_beams must be a whole number, got {beams}")
+    return LidarConfig(
+        num_beams=int(beams),
+        rate_hz=values.get("rate_hz", default.rate_hz),
+        range_min_m=values.get("range_min_m", default.range_min_m),
+        range_max_m=values.get("range_max_m", default.range_max_m),
+        noise_std_m=values.get("noise_std_m", default.noise_std_m),
+        fov_rad=values.get("fov_rad", default.fov_rad),
+    )
+
+
 class Lidar:
     """Casts the scans of one :class:`LidarConfig` from a site of a MuJoCo model.
 

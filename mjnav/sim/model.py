@@ -266,6 +266,12 @@ def robot_radius(model: mujoco.MjModel, data: mujoco.MjData, robot: RobotBinding
     return radius
 
 
+def lidar_offset(model: mujoco.MjModel, robot: RobotBinding) -> tuple[float, float, float]:
+    """(x, y, z) of the lidar site in ``base_link``, metres (the site's parent is ``base_link``)."""
+    x, y, z = (float(v) for v in model.site_pos[robot.lidar_site])
+    return x, y, z
+
+
 def load_world(world: str | Path, *, timestep_s: float | None = None) -> LoadedWorld:
     """Parse and compile a world, add the collision sensors and resolve the robot's names to ids.
 
@@ -328,5 +334,7 @@ def load_world(world: str | Path, *, timestep_s: float | None = None) -> LoadedW
         start=root_pose(model, model.qpos0, robot),
         goal=goal,
         bounds_m=static_bounds(model, data),
+        robot_radius_m=robot_radius(model, data, robot),
+        lidar_offset_m=lidar_offset(model, robot),
     )
     return LoadedWorld(model=model, info=info, robot=robot)

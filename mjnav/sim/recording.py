@@ -13,13 +13,20 @@ Cameras:
     ``follow``: a chase camera 2.8 m behind and 2.8 m above the robot, looking along its heading (high enough
         to see over 2 m shelves).
     any other name: a ``<camera>`` of the model.
+
+Overlay (:class:`Overlay`, :attr:`Recorder.overlay`): what navigation knows, drawn into every frame as flat scene
+geoms above the floor — the map's occupied cells (dark squares), the plan (orange), the smoothed path (green), the
+goal (red disc) and the trail the tracked body drove (blue, extended at every frame). The sim service fills it from
+``map``, ``plan``, ``path`` and ``goal``.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Generator
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -34,6 +41,65 @@ from mjnav.sim.model import static_bounds
 
 if TYPE_CHECKING:
     from mjnav.sim.runner import SimRunner
+
+
+#: Overlay colours (RGBA, 0..1) and heights above the floor (m); tests look for the colours in the frames.
+OVERLAY_RGBA = {
+    "map": (0.15, 0.15, 0.15, 0.55),
+    "plan": (1.0, 0.6, 0.0, 1.0),
+    "path": (0.09, 0.78, 0.05, 1.0),
+    "goal": (0.9, 0.1, 0.1, 0.9),
+    "trail": (0.12, 0.47, 0.95, 1.0),
+}
+_OVERLAY_Z = {"map": 0.003, "plan": 0.012, "path": 0.016, "goal": 0.02, "trail": 0.008}
+#: Scene geoms kept for the overlay beyond the model's own.
+OVERLAY_GEOMS = 2000
+#: The trail gets a point when the tracked body moved this far from the last one, metres.
+TRAIL_SPACING_M = 0.1
+#: Plan, path and trail are drawn with at most this many segments each (evenly decimated).
+POLYLINE_SEGMENTS = 80
+
+
+@dataclass
+class Overlay:
+    """Navigation state drawn into the video (map frame, metres).
+
+    Attributes:
+        boxes: (K, 4) the map's occupied cells merged into rectangles: centre x, y and half sizes, metres.
+        plan: (N, 2) raw plan, or None.
+        path: (M, 2) smoothed path, or None.
+        goal: (x, y) of the goal, or None.
+        trail: driven trail, extended by :meth:`Recorder.render` from the tracked body when ``track_trail``.
+        track_trail: record and draw the tracked body's trail (off by default: a flying body's trail would lie on
+            the floor).
+    """
+
+    boxes: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
+    plan: NDArray[np.float64] | None = None
+    path: NDArray[np.float64] | None = None
+    goal: tuple[float, float] | None = None
+    trail: list[tuple[float, float]] = field(default_factory=list)
+    track_trail: bool = False
+
+    def set_map(self, occupancy: NDArray[np.int8], origin_m: tuple[float, float], resolution_m: float) -> None:
+        """Take the occupied cells (value >= 65) of an (H, W) occupancy grid (row 0 = lowest y), merged into few
+        rectangles (:func:`mjnav.sim.worldgen.merge_rectangles`)."""
+        from mjnav.sim.worldgen import merge_rectangles
+
+        rects = merge_rectangles(np.asarray(occupancy) >= 65).astype(np.float64)[: OVERLAY_GEOMS // 2]
+        r, c, nr, nc = rects.T
+        self.boxes = np.column_stack(
+            (origin_m[0] + (c + 0.5 * nc) * resolution_m, origin_m[1] + (r + 0.5 * nr) * resolution_m,
+             0.5 * nc * resolution_m, 0.5 * nr * resolution_m)
+        )  # fmt: skip
+
+
+def _decimate(xy: Any, max_segments: int) -> NDArray[np.float64]:
+    """At most ``max_segments`` + 1 points of a polyline, evenly picked, first and last kept."""
+    pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if len(pts) <= max_segments + 1:
+        return pts
+    return pts[np.unique(np.linspace(0, len(pts) - 1, max_segments + 1).round().astype(int))]
 
 
 def _gl_context(backend: str, width: int, height: int) -> Any:
@@ -119,7 +185,10 @@ class Recorder:
                 f"packages: {', '.join(f'{k}: {v}' for k, v in BACKENDS.items())}"
             ) from exc
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
-        self._scene = mujoco.MjvScene(model, maxgeom=int(model.ngeom) + 256)
+        self._scene = mujoco.MjvScene(model, maxgeom=int(model.ngeom) + 256 + OVERLAY_GEOMS)
+        #: What navigation knows, drawn over the world in every frame (see :class:`Overlay`).
+        self.overlay = Overlay()
+        self._track = track_body if track_body is not None else min(1, model.nbody - 1)
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
         self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
         self._option = mujoco.MjvOption()
@@ -213,11 +282,62 @@ class Recorder:
             mujoco.mjtCatBit.mjCAT_ALL,
             self._scene,
         )
+        self._draw_overlay()
         mujoco.mjr_render(self._rect, self._scene, self._context)
         mujoco.mjr_readPixels(self._pixels, None, self._rect, self._context)
         frame = self._pixels[::-1]
         self.render_s += time.perf_counter() - t0
         return frame
+
+    def _add_geom(self, kind: str) -> mujoco.MjvGeom | None:
+        scn = self._scene
+        if scn.ngeom >= scn.maxgeom:
+            return None
+        geom = scn.geoms[scn.ngeom]
+        scn.ngeom += 1
+        mujoco.mjv_initGeom(
+            geom, mujoco.mjtGeom.mjGEOM_BOX, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
+            np.asarray(OVERLAY_RGBA[kind], dtype=np.float32),
+        )  # fmt: skip
+        geom.category = mujoco.mjtCatBit.mjCAT_DECOR
+        return geom
+
+    def _polyline(self, kind: str, xy: Any, width_px: float) -> None:
+        pts = _decimate(xy, POLYLINE_SEGMENTS)
+        z = _OVERLAY_Z[kind]
+        for a, b in itertools.pairwise(pts):
+            if not np.any(a != b):
+                continue
+            geom = self._add_geom(kind)
+            if geom is None:
+                return
+            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, width_px, (a[0], a[1], z), (b[0], b[1], z))
+
+    def _draw_overlay(self) -> None:
+        """Append the overlay's geoms to the scene (after ``mjv_updateScene``); the trail grows from the tracked
+        body's position."""
+        ov = self.overlay
+        if ov.track_trail:
+            x, y = (float(v) for v in self.data.xpos[self._track][:2])
+            if not ov.trail or math.dist(ov.trail[-1], (x, y)) >= TRAIL_SPACING_M:
+                ov.trail.append((x, y))
+        for cx, cy, hx, hy in ov.boxes:
+            geom = self._add_geom("map")
+            if geom is None:
+                break
+            geom.size[:] = (hx, hy, 0.002)
+            geom.pos[:] = (cx, cy, _OVERLAY_Z["map"])
+        self._polyline("trail", ov.trail, 4.0)  # lines: widths in pixels, cheap to render
+        if ov.plan is not None:
+            self._polyline("plan", ov.plan, 3.0)
+        if ov.path is not None:
+            self._polyline("path", ov.path, 3.0)
+        if ov.goal is not None:
+            geom = self._add_geom("goal")
+            if geom is not None:
+                geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+                geom.size[:] = (0.2, 0.2, 0.005)
+                geom.pos[:] = (ov.goal[0], ov.goal[1], _OVERLAY_Z["goal"])
 
     def capture(self) -> None:
         """Render the current state and append it to the video."""

@@ -22,6 +22,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Final, Literal
 
 import mujoco
 import numpy as np
@@ -29,14 +30,16 @@ from numpy.typing import NDArray
 
 from mjnav.geometry import Pose2D
 from mjnav.motion import DiffDriveKinematics
-from mjnav.sim.errors import InvalidCommandError, SimError
-from mjnav.sim.lidar import Lidar, LidarConfig, LidarScan
+from mjnav.sim.errors import InvalidCommandError, ModelLoadError, SimError
+from mjnav.sim.lidar import Lidar, LidarConfig, LidarScan, lidar_config_from_model
 from mjnav.sim.model import RobotBinding, body_name, load_world, moving_bodies, robot_radius, root_pose
 from mjnav.sim.odometry import OdometryConfig, OdometryEstimate, WheelOdometry
 from mjnav.sim.worlds import WorldInfo
 
-#: Default lidar: 360 beams, 10 Hz, 0.12–12 m, σ = 1 cm.
+#: Lidar of a robot model without ``lidar_*`` numerics: 360 beams, 10 Hz, 0.12–12 m, σ = 1 cm.
 DEFAULT_LIDAR = LidarConfig()
+#: ``Simulator(lidar=MODEL_LIDAR)`` (the default): the lidar the robot model declares (its ``lidar_*`` numerics).
+MODEL_LIDAR: Final = "model"
 #: Default odometry error model (50 Hz, 4096 ticks/rev, 0.3 % radius, 1 % wheel-base, 1 % slip noise).
 DEFAULT_ODOMETRY = OdometryConfig()
 
@@ -105,7 +108,7 @@ class Simulator:
         *,
         seed: int = 0,
         rng: np.random.Generator | None = None,
-        lidar: LidarConfig | None = DEFAULT_LIDAR,
+        lidar: LidarConfig | Literal["model"] | None = MODEL_LIDAR,
         odometry: OdometryConfig = DEFAULT_ODOMETRY,
         watchdog_timeout_s: float | None = 0.5,
         start: Pose2D | None = None,
@@ -118,7 +121,8 @@ class Simulator:
             world: bundled world name (``empty``, ``rooms``, ``maze``, ``warehouse``) or an MJCF path.
             seed: seed of every noise source; ignored when ``rng`` is given.
             rng: generator to spawn the noise streams from (overrides ``seed``).
-            lidar: lidar layout, rate and noise; ``None`` disables the lidar.
+            lidar: lidar layout, rate and noise; ``"model"`` (default): the robot model's (its ``lidar_*`` numerics,
+                :func:`mjnav.sim.lidar.lidar_config_from_model`); ``None`` disables the lidar.
             odometry: wheel-odometry rate and error model.
             watchdog_timeout_s: zero the wheels when the newest command is this old, seconds; ``None``: never.
             start: start pose in the map frame; ``None`` = the world's own start (its ``start`` frame).
@@ -146,7 +150,14 @@ class Simulator:
         self._dt = float(self._model.opt.timestep)
         parent = rng if rng is not None else np.random.default_rng(seed)
         self._rng_lidar, self._rng_odom, self._rng_imu, self._rng_enc = parent.spawn(4)
-        self._lidar_config = lidar
+        if isinstance(lidar, str):
+            if lidar != MODEL_LIDAR:
+                raise InvalidCommandError(f"lidar must be a LidarConfig, {MODEL_LIDAR!r} or None, got {lidar!r}")
+            try:
+                lidar = lidar_config_from_model(self._model, self._robot.prefix)
+            except ValueError as exc:
+                raise ModelLoadError(f"{loaded.info.path}: {exc}") from exc
+        self._lidar_config: LidarConfig | None = lidar
         self._odom_config = odometry
         self._watchdog_steps = (
             _NEVER if watchdog_timeout_s is None else max(1, math.ceil(watchdog_timeout_s / self._dt - 1e-9))

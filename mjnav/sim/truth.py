@@ -64,6 +64,100 @@ def static_occupancy(model: mujoco.MjModel, data: mujoco.MjData, frame: GridFram
     return occupied.reshape(h, w)
 
 
+class FootprintClearance:
+    """Exact distance from the robot's footprint to the world's static obstacles (the scoring of ``mjnav demo``).
+
+    The footprint is the disc of the robot's radius (the smallest vertical cylinder holding its colliding geoms,
+    :attr:`WorldInfo.robot_radius_m`) about ``base_link``; obstacles are the footprints :func:`static_occupancy`
+    rasterises (oriented boxes, discs, squares around other shapes' bounding spheres), here as exact shapes.
+    A negative clearance means the footprint overlaps an obstacle.
+
+    Args:
+        world: bundled world name or MJCF path.
+    """
+
+    def __init__(self, world: str | Path) -> None:
+        from mjnav.sim.simulator import Simulator
+
+        sim = Simulator(world, lidar=None)
+        model, data = sim.model, sim.data
+        mujoco.mj_forward(model, data)
+        self.robot_radius_m = float(sim.robot_radius_m)
+        boxes: list[list[float]] = []  # cx, cy, cos, sin, hx, hy
+        discs: list[list[float]] = []  # cx, cy, r
+        for g in range(model.ngeom):
+            gtype = int(model.geom_type[g])
+            if gtype == _G.mjGEOM_PLANE or int(model.geom_group[g]) == ROBOT_GEOM_GROUP:
+                continue
+            if int(model.body_weldid[int(model.geom_bodyid[g])]) != 0:
+                continue
+            if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
+                continue
+            cx, cy = float(data.geom_xpos[g, 0]), float(data.geom_xpos[g, 1])
+            size = model.geom_size[g]
+            rot = data.geom_xmat[g].reshape(3, 3)
+            if gtype == _G.mjGEOM_BOX:
+                boxes.append([cx, cy, float(rot[0, 0]), float(rot[1, 0]), float(size[0]), float(size[1])])
+            elif gtype in (_G.mjGEOM_CYLINDER, _G.mjGEOM_CAPSULE, _G.mjGEOM_SPHERE):
+                discs.append([cx, cy, float(size[0])])
+            elif gtype == _G.mjGEOM_ELLIPSOID:
+                discs.append([cx, cy, float(max(size[0], size[1]))])
+            else:
+                r = float(model.geom_rbound[g])
+                boxes.append([cx, cy, 1.0, 0.0, r, r])
+        self._boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 6)
+        self._discs = np.asarray(discs, dtype=np.float64).reshape(-1, 3)
+
+    def obstacle_distance_m(self, x: float, y: float) -> float:
+        """Signed distance (m) from point (x, y) to the nearest static obstacle (negative inside one; inf without
+        obstacles)."""
+        best = math.inf
+        b = self._boxes
+        if len(b):
+            dx, dy = x - b[:, 0], y - b[:, 1]
+            qx = np.abs(dx * b[:, 2] + dy * b[:, 3]) - b[:, 4]  # along the box's own x axis
+            qy = np.abs(-dx * b[:, 3] + dy * b[:, 2]) - b[:, 5]
+            outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
+            best = float(np.min(outside + np.minimum(np.maximum(qx, qy), 0.0)))
+        d = self._discs
+        if len(d):
+            best = min(best, float(np.min(np.hypot(x - d[:, 0], y - d[:, 1]) - d[:, 2])))
+        return best
+
+    def clearance_m(self, x: float, y: float) -> float:
+        """Footprint-to-obstacle distance (m) with the robot at (x, y): negative = overlapping an obstacle."""
+        return self.obstacle_distance_m(x, y) - self.robot_radius_m
+
+
+def true_grid(
+    world: str | Path, resolution_m: float = 0.1, border_m: float = 1.0
+) -> tuple[NDArray[np.bool_], GridFrame]:
+    """The world's true static occupancy on a grid covering its static obstacles and its start, with a border.
+
+    Args:
+        world: bundled world name or MJCF path.
+        resolution_m: cell size, metres.
+        border_m: free margin around the obstacles' bounds (and the start), metres.
+
+    Returns:
+        ``(occupied, frame)``: (H, W) bool, True inside a static obstacle's footprint; the grid's placement.
+    """
+    from mjnav.sim.simulator import Simulator
+    from mjnav.sim.worlds import world_info
+
+    info = world_info(world)
+    sim = Simulator(info.path, lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    xs, ys = [info.start.x], [info.start.y]
+    if info.bounds_m is not None:
+        xs += [info.bounds_m[0], info.bounds_m[2]]
+        ys += [info.bounds_m[1], info.bounds_m[3]]
+    x0, y0 = min(xs) - border_m, min(ys) - border_m
+    shape = (math.ceil((max(ys) + border_m - y0) / resolution_m), math.ceil((max(xs) + border_m - x0) / resolution_m))
+    frame = GridFrame(resolution_m, (x0, y0), shape)
+    return static_occupancy(sim.model, sim.data, frame), frame
+
+
 def shortest_length_m(
     world: str | Path, start_xy: tuple[float, float], goal_xy: tuple[float, float], *, resolution_m: float = 0.05
 ) -> float:

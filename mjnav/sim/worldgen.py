@@ -13,9 +13,11 @@ cell (r, c) covers x in origin_x + [c, c+1]·res, y in origin_y + [r, r+1]·res 
   (0, 0). Their row 0 is the top of the picture, so it becomes the highest y: the top camera shows the map as
   printed, and a scenario cell (x = col, y = row) lies at ((col + 0.5)·res, (H − 1 − row + 0.5)·res).
 
-Start and goal: given explicitly, or chosen automatically in the largest connected region whose cells keep at
-least ``clearance_m`` from every obstacle: start = the region cell nearest the map centre, goal = the region
-cell farthest from the start.
+Start and goal: given explicitly, or chosen automatically in the largest connected region of *known* free cells
+that keep at least ``clearance_m`` from every obstacle and every unknown cell (a saved map's unexplored outside is
+never chosen): start = the region cell nearest the map centre, goal = the region cell farthest from the start; or,
+with a seeded ``numpy.random.Generator`` (``mjnav demo --world MAP``), a random region cell as start and a random
+region cell within a distance band of it as goal — the region is connected, so the goal is reachable.
 """
 
 from __future__ import annotations
@@ -46,12 +48,15 @@ class GridMap:
         resolution_m: cell size, metres.
         origin_m: (x, y, yaw) of the outer corner of cell (0, 0) in the world frame, metres and radians.
         name: a name for the world (the map file stem).
+        unknown: (H, W) bool, True = the map did not know the cell (free floor in the world, but never a start or
+            goal); ``None`` = every cell known.
     """
 
     occupied: NDArray[np.bool_]
     resolution_m: float
     origin_m: tuple[float, float, float]
     name: str
+    unknown: NDArray[np.bool_] | None = None
 
     def cell_to_world(self, row: float, col: float) -> tuple[float, float]:
         """World (x, y) in metres of the centre of cell (row, col)."""
@@ -173,8 +178,9 @@ def load_grid_map(path: str | Path, *, resolution_m: float | None = None, unknow
         except (OSError, ValueError) as exc:
             raise MapConversionError(f"cannot read ROS map {p}: {exc}") from exc
         occ = np.asarray(ros.occupied_mask(unknown_is_occupied=unknown_is_occupied), dtype=np.bool_)
+        unknown = (np.asarray(ros.occupancy) < 0) & ~occ
         ox, oy, yaw = (float(v) for v in ros.origin_m)
-        return GridMap(occ, float(ros.resolution_m), (ox, oy, yaw), p.stem)
+        return GridMap(occ, float(ros.resolution_m), (ox, oy, yaw), p.stem, unknown if unknown.any() else None)
     raise MapConversionError(f"{p}: unknown map format {suffix!r}; use a ROS .yaml (+ image) or a Moving AI .map")
 
 
@@ -183,30 +189,42 @@ def add_border(grid: GridMap) -> GridMap:
     h, w = grid.occupied.shape
     occ = np.ones((h + 2, w + 2), dtype=np.bool_)
     occ[1:-1, 1:-1] = grid.occupied
+    unknown = None
+    if grid.unknown is not None:
+        unknown = np.zeros_like(occ)
+        unknown[1:-1, 1:-1] = grid.unknown
     ox, oy, yaw = grid.origin_m
     c, s = math.cos(yaw), math.sin(yaw)
     res = grid.resolution_m
-    return GridMap(occ, res, (ox - res * (c - s), oy - res * (s + c), yaw), grid.name)
+    return GridMap(occ, res, (ox - res * (c - s), oy - res * (s + c), yaw), grid.name, unknown)
 
 
-def choose_start_goal(grid: GridMap, clearance_m: float) -> tuple[Pose2D, Pose2D]:
-    """Pick a start and a far-away goal with at least ``clearance_m`` to every wall (see module docstring).
+def choose_start_goal(
+    grid: GridMap,
+    clearance_m: float,
+    rng: np.random.Generator | None = None,
+    *,
+    min_distance_m: float = 2.0,
+    max_distance_m: float = 12.0,
+) -> tuple[Pose2D, Pose2D]:
+    """Pick a start and a goal with at least ``clearance_m`` to every wall and unknown cell (module docstring).
 
-    The start faces the goal; the goal keeps that heading.
+    Both lie in the largest connected region of such cells, so the goal is reachable from the start for a robot
+    of radius ``clearance_m``. The start faces the goal; the goal keeps that heading.
+
+    Args:
+        grid: the map.
+        clearance_m: free distance to walls and unknown cells, metres.
+        rng: ``None``: start = the region cell nearest the map centre, goal = the region cell farthest from it.
+            A generator: start = a random region cell, goal = a random region cell whose straight-line distance
+            from the start lies in [``min_distance_m``, ``max_distance_m``] (the band is widened to the nearest
+            achievable distance when no cell lies in it).
+        min_distance_m, max_distance_m: the goal's distance band with ``rng``, metres.
 
     Raises:
-        MapConversionError: no free cell has that much clearance.
+        MapConversionError: no free cell has that much clearance, or the region is a single cell.
     """
-    from scipy import ndimage
-
-    free = ~grid.occupied
-    clearance = ndimage.distance_transform_edt(free) * grid.resolution_m
-    ok = clearance >= clearance_m + 0.5 * grid.resolution_m
-    labels, n = ndimage.label(ok)
-    if n == 0:
-        raise MapConversionError(
-            f"{grid.name}: no free cell keeps {clearance_m:.2f} m from the walls; the robot does not fit"
-        )
+    labels = _regions(grid, clearance_m)
     sizes = np.bincount(labels.ravel())[1:]
     region = np.argwhere(labels == int(np.argmax(sizes)) + 1)
     if len(region) < 2:
@@ -214,14 +232,89 @@ def choose_start_goal(grid: GridMap, clearance_m: float) -> tuple[Pose2D, Pose2D
             f"{grid.name}: only one cell keeps {clearance_m:.2f} m from the walls; use a larger resolution "
             "or give the start and goal explicitly"
         )
-    h, w = grid.occupied.shape
-    centre = np.array([(h - 1) / 2.0, (w - 1) / 2.0])
-    start_rc = region[int(np.argmin(np.sum((region - centre) ** 2, axis=1)))]
-    goal_rc = region[int(np.argmax(np.sum((region - start_rc) ** 2, axis=1)))]
+    if rng is None:
+        h, w = grid.occupied.shape
+        centre = np.array([(h - 1) / 2.0, (w - 1) / 2.0])
+        start_rc = region[int(np.argmin(np.sum((region - centre) ** 2, axis=1)))]
+        goal_rc = region[int(np.argmax(np.sum((region - start_rc) ** 2, axis=1)))]
+    else:
+        start_rc = region[int(rng.integers(len(region)))]
+        goal_rc = _goal_in_band(grid, region, start_rc, rng, min_distance_m, max_distance_m)
     sx, sy = grid.cell_to_world(float(start_rc[0]), float(start_rc[1]))
     gx, gy = grid.cell_to_world(float(goal_rc[0]), float(goal_rc[1]))
     heading = math.atan2(gy - sy, gx - sx) if (gx, gy) != (sx, sy) else 0.0
     return Pose2D(sx, sy, heading), Pose2D(gx, gy, heading)
+
+
+def _regions(grid: GridMap, clearance_m: float) -> NDArray[np.int32]:
+    """(H, W) labels of the connected regions of known free cells keeping ``clearance_m`` from walls and unknown
+    cells (0 = not such a cell).
+
+    Raises:
+        MapConversionError: there is no such cell.
+    """
+    from scipy import ndimage
+
+    blocked = grid.occupied if grid.unknown is None else grid.occupied | grid.unknown
+    clearance = ndimage.distance_transform_edt(~blocked) * grid.resolution_m
+    labels, n = ndimage.label(clearance >= clearance_m + 0.5 * grid.resolution_m)
+    if n == 0:
+        raise MapConversionError(
+            f"{grid.name}: no free cell keeps {clearance_m:.2f} m from the walls; the robot does not fit"
+        )
+    return np.asarray(labels, dtype=np.int32)
+
+
+def _goal_in_band(
+    grid: GridMap,
+    region: NDArray[np.int64],
+    start_rc: NDArray[np.int64],
+    rng: np.random.Generator,
+    min_distance_m: float,
+    max_distance_m: float,
+) -> NDArray[np.int64]:
+    """A random cell of ``region`` (K, 2) whose distance from ``start_rc`` lies in the band (or is nearest it)."""
+    if not 0.0 <= min_distance_m <= max_distance_m:
+        raise MapConversionError(f"need 0 <= min_distance_m <= max_distance_m, got {min_distance_m}, {max_distance_m}")
+    dist = np.sqrt(np.sum((region - start_rc) ** 2, axis=1)) * grid.resolution_m
+    band = np.flatnonzero((dist >= min_distance_m) & (dist <= max_distance_m))
+    if len(band) == 0:  # nothing in the band: the achievable distance nearest to it
+        gap = np.maximum(min_distance_m - dist, dist - max_distance_m)
+        gap[dist == 0.0] = np.inf
+        band = np.flatnonzero(gap == gap.min())
+    return region[int(band[int(rng.integers(len(band)))])]
+
+
+def choose_goal(
+    grid: GridMap,
+    start: Pose2D,
+    clearance_m: float,
+    rng: np.random.Generator,
+    *,
+    min_distance_m: float = 2.0,
+    max_distance_m: float = 12.0,
+) -> Pose2D:
+    """A random goal reachable from ``start``: a cell of the start's region (see :func:`choose_start_goal`; the
+    region nearest the start when its own cell lacks the clearance) in the distance band, facing away from the
+    start.
+
+    Raises:
+        MapConversionError: no cell has the clearance, or the start's region has no other cell.
+    """
+    labels = _regions(grid, clearance_m)
+    cells = np.argwhere(labels > 0)
+    # The start's cell: invert cell_to_world (rotate back about the origin).
+    ox, oy, yaw = grid.origin_m
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx, dy = start.x - ox, start.y - oy
+    rc = np.array([(-s * dx + c * dy) / grid.resolution_m - 0.5, (c * dx + s * dy) / grid.resolution_m - 0.5])
+    nearest = cells[int(np.argmin(np.sum((cells - rc) ** 2, axis=1)))]
+    region = np.argwhere(labels == labels[nearest[0], nearest[1]])
+    if len(region) < 2:
+        raise MapConversionError(f"{grid.name}: no goal reachable from the start keeps {clearance_m:.2f} m from walls")
+    goal_rc = _goal_in_band(grid, region, nearest, rng, min_distance_m, max_distance_m)
+    gx, gy = grid.cell_to_world(float(goal_rc[0]), float(goal_rc[1]))
+    return Pose2D(gx, gy, math.atan2(gy - start.y, gx - start.x))
 
 
 def _fmt(v: float) -> str:
@@ -309,6 +402,9 @@ def write_scene_from_map(
     start: Pose2D | None = None,
     goal: Pose2D | None = None,
     clearance_m: float = 0.35,
+    rng: np.random.Generator | None = None,
+    min_distance_m: float = 2.0,
+    max_distance_m: float = 12.0,
 ) -> SceneSummary:
     """Read a map file and write a world MJCF built from it (the ``mjnav world from-map`` command).
 
@@ -322,6 +418,9 @@ def write_scene_from_map(
         start: robot start pose (world frame); default chosen automatically.
         goal: default goal (world frame); default chosen automatically.
         clearance_m: free distance to walls required for automatic start/goal cells, metres.
+        rng: seeded choice of the automatic start and goal (see :func:`choose_start_goal`); ``None``: centre
+            start, farthest goal.
+        min_distance_m, max_distance_m: with ``rng``, the band of the goal's distance from the start, metres.
 
     Raises:
         MapConversionError: unreadable map, no room for the robot, or MuJoCo rejects the result.
@@ -330,7 +429,9 @@ def write_scene_from_map(
     if border:
         grid = add_border(grid)
     if start is None or goal is None:
-        auto_start, auto_goal = choose_start_goal(grid, clearance_m)
+        auto_start, auto_goal = choose_start_goal(
+            grid, clearance_m, rng, min_distance_m=min_distance_m, max_distance_m=max_distance_m
+        )
         start = start or auto_start
         goal = goal or auto_goal
     xml, boxes = scene_xml_from_grid(grid, start=start, goal=goal, wall_height_m=wall_height_m)

@@ -72,6 +72,10 @@ class WorldInfo:
         goal: default goal in the map frame, or ``None`` when the scene defines none.
         bounds_m: (x_min, y_min, x_max, y_max) of the static non-plane geoms (walls, shelves), metres,
             or ``None`` for a world without any (``empty``).
+        robot_radius_m: radius of the smallest vertical cylinder about ``base_link`` holding every colliding robot
+            geom (the footprint the costmap and the controller use), metres.
+        lidar_offset_m: (x, y, z) of the robot's ``lidar`` site in ``base_link`` (the ``base_link → laser``
+            transform), metres.
     """
 
     name: str
@@ -79,6 +83,8 @@ class WorldInfo:
     start: Pose2D
     goal: Pose2D | None
     bounds_m: tuple[float, float, float, float] | None
+    robot_radius_m: float
+    lidar_offset_m: tuple[float, float, float]
 
 
 def goal_from_numeric(data: list[float] | tuple[float, ...]) -> Pose2D:

@@ -48,6 +48,10 @@ MAP_Z_M = 0.004
 COSTMAP_Z_M = 0.008
 PLAN_Z_M = 0.03
 PATH_Z_M = 0.04
+#: The driven trail: the robot's poses on the pose topic, a point every TRAIL_SPACING_M, drawn as a line.
+TRAIL_COLOUR = 0x1F77B4
+TRAIL_Z_M = 0.02
+TRAIL_SPACING_M = 0.1
 #: Goal marker colour per mjnav_msgs/GoalStatus state: amber accepted/planning (0 = no status yet), teal following,
 #: green reached, red failed, grey canceled.
 GOAL_COLOURS = {0: 0xF2C200, 1: 0xF2C200, 2: 0xF2C200, 3: 0x00C2C7, 4: 0x16C60C, 5: 0xE02020, 6: 0x8A8A8A}
@@ -140,6 +144,7 @@ class NavView:
         self.model: VisualModel | None = None
         self.goal_state = 0
         self._goal: Any = None
+        self.trail: list[tuple[float, float]] = []  # driven trail, map frame, metres
         self.drawn: dict[str, int] = {}
 
     # ------------------------------------------------------------------------------------------------ set-up
@@ -197,6 +202,20 @@ class NavView:
         """Move the robot: ``transform`` is the (4, 4) pose of ``base_link`` in ``map``."""
         self.scene.set_transform(f"{ROOT}/robot", transform)
         self._count("robot")
+
+    def extend_trail(self, x: float, y: float) -> None:
+        """Grow the driven trail by (x, y) (map frame, metres) when the robot moved :data:`TRAIL_SPACING_M` from
+        the trail's last point; the trail is one line, replaced as it grows."""
+        if self.trail and math.dist(self.trail[-1], (x, y)) < TRAIL_SPACING_M:
+            return
+        self.trail.append((x, y))
+        if len(self.trail) < 2:
+            return
+        xy = np.asarray(self.trail, dtype=np.float32).T
+        points = np.vstack((xy, np.full((1, xy.shape[1]), TRAIL_Z_M, dtype=np.float32)))
+        material = mg.LineBasicMaterial(color=TRAIL_COLOUR, linewidth=3.0)
+        self.scene.set_object(f"{ROOT}/trail", mg.Line(mg.PointsGeometry(points), material))
+        self._count("trail")
 
     def move_bodies(self, tf: Any) -> None:
         """Move the moving bodies named in ``tf`` (tf2_msgs/TFMessage, transforms ``map`` → body name); transforms
@@ -281,6 +300,7 @@ class NavView:
         if topic_name == self.pose_topic:
             pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose  # PoseStamped, or with covariance/Odometry
             self.set_robot_pose(pose_msg_matrix(pose))
+            self.extend_trail(pose.position.x, pose.position.y)
         elif topic_name == "scan":
             self.draw_scan(msg)
         elif topic_name in ("map", "costmap"):

@@ -29,6 +29,7 @@ class KinematicRobot(Service[KinematicConfig]):
     name = "kinematic"
     config_class = KinematicConfig
     uses_sim_time = False
+    runtime_settable = frozenset({"max_speed_mps"})  # read at every step
 
     def configure(self) -> None:
         if self.config.fail_in_configure:

@@ -14,6 +14,7 @@ class _Wheels:
     """Stands in for the Simulator: records the commands the bridge applies."""
 
     moving_body_names: tuple[str, ...] = ()
+    lidar_config = None  # no lidar (the bridge reads the scan period from the simulator's model lidar)
 
     def __init__(self) -> None:
         self.commands: list[tuple[float, float]] = []

@@ -132,6 +132,8 @@ def test_planner_refuses_goals_it_cannot_serve(planner: Harness) -> None:
         last = planner.received["goal_status"]
         assert planner.service.goal is None
         assert (last[-1].goal_id, last[-1].state, last[-1].error_code) == (i + 1, STATUS.STATE_FAILED, error)
+        if error == STATUS.ERROR_NO_PATH:  # metres first, the planner's cells in parentheses
+            assert "m to (3.05, 2.05) m (cells" in last[-1].error_text, last[-1].error_text
 
 
 def test_planner_replans_when_blocked_and_switches_only_to_a_clearly_cheaper_route(planner: Harness) -> None:

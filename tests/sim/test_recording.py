@@ -79,3 +79,46 @@ def test_a_backend_whose_library_is_missing_names_its_debian_package(monkeypatch
     monkeypatch.setenv("MUJOCO_GL", "osmesa")
     with pytest.raises(RenderBackendUnavailableError, match="apt-get install libosmesa6"):
         select_gl_backend()
+
+
+def test_the_video_shows_the_map_plan_path_goal_and_trail(backend: str) -> None:
+    from mjnav.sim import Recorder
+
+    sim = Simulator("rooms", seed=0, lidar=None)  # start (-3.5, -3.5), facing +x
+    robot = sim.robot.root_body
+
+    def colour_share(frame: np.ndarray, kind: str) -> float:
+        """Share of pixels with the hue of ``kind``'s colour (lighting shades the overlay, so no exact match)."""
+        r, g, b = (frame[..., i].astype(int) for i in range(3))
+        hue = {
+            "plan": (r > 170) & (r - b > 110) & (g > 80) & (g < r - 30),  # orange
+            "path": (g > r + 50) & (g > b + 50),  # green
+            "goal": (r > 140) & (g < 90) & (b < 90),  # red
+            "trail": (b > r + 70) & (b > g + 20),  # blue
+        }[kind]
+        return float(hue.mean())
+
+    with Recorder(sim.model, sim.data, None, width=320, height=240, camera="top", track_body=robot) as rec:
+        bare = rec.render().copy()  # render() returns its own buffer
+        ov = rec.overlay
+        ov.track_trail = True
+        ov.plan = np.array([[-3.5, -3.5], [-3.0, 0.0], [0.0, 2.0], [3.8, 2.2]])
+        ov.path = ov.plan + np.array([0.0, 0.3])
+        ov.goal = (3.8, 2.2)
+        occupancy = np.zeros((40, 40), dtype=np.int8)
+        occupancy[10:30, 10:30] = 100  # a 1 x 1 m mapped block: x in [1.5, 2.5], y in [-1.5, -0.5]
+        ov.set_map(occupancy, (1.0, -2.0), 0.05)
+        sim.set_command(0.5, 0.0)
+        frames = []
+        for _ in range(4):
+            sim.set_command(0.5, 0.0)  # the watchdog stops a command older than 0.5 s
+            sim.step_until(sim.time_s + 1.0)
+            frames.append(rec.render().copy())
+    last = frames[-1]
+    for kind in ("plan", "path", "goal", "trail"):
+        # Drawn: far more pixels of the item's colour than the world alone has (furniture, the heading marker).
+        assert colour_share(last, kind) > colour_share(bare, kind) + 5e-4, kind
+    assert len(ov.trail) == 4 and ov.trail[-1][0] > ov.trail[0][0] + 0.6  # a point per frame, following the robot
+    # The mapped block is drawn dark where it is (top camera: image right = +x, up = +y; world centre mid-image).
+    assert last[..., :3].astype(int).sum(axis=-1).min() < 200
+    assert colour_share(frames[-1], "trail") > colour_share(frames[0], "trail")  # the trail grows

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import mujoco
+import numpy as np
 import pytest
 
 from mjnav.mapping import GridFrame
@@ -37,3 +38,29 @@ def test_shortest_length_is_at_least_the_straight_line() -> None:
     assert 9.28 < length < 11.0  # straight line is 9.27 m; the walls force a detour through the doorways
     with pytest.raises(Exception):  # noqa: B017 - the goal lies inside a wall: any planning error
         shortest_length_m("rooms", (-3.5, -3.5), (0.0, 0.0))
+
+
+def test_footprint_clearance_is_the_distance_from_the_robot_disc_to_the_walls() -> None:
+    from scipy.ndimage import distance_transform_edt
+
+    from mjnav.sim.truth import FootprintClearance
+
+    fc = FootprintClearance("rooms")
+    assert fc.robot_radius_m == pytest.approx(0.19)
+    # rooms: the x = 0 partition is 0.1 m thick (x in [-0.05, 0.05]) around y = 0, the outer wall at y = 5.
+    assert fc.obstacle_distance_m(-0.5, 0.9) == pytest.approx(0.45)  # nearest: the partition's face at x = -0.05
+    assert fc.obstacle_distance_m(0.0, 0.5) == pytest.approx(-0.05)  # inside the partition: minus the depth
+    assert fc.clearance_m(-0.2, 0.5) == pytest.approx(0.15 - 0.19)  # the disc overlaps the wall by 4 cm
+    # Against an independent measure: the Euclidean distance transform of the rasterised true map (0.01 m cells).
+    sim = Simulator("rooms", lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    frame = GridFrame(0.01, (-5.5, -5.5), (1100, 1100))
+    occupied = static_occupancy(sim.model, sim.data, frame)
+    edt = distance_transform_edt(~occupied) * 0.01
+    rng = np.random.default_rng(3)
+    for x, y in rng.uniform(-4.8, 4.8, size=(200, 2)):
+        r, c = frame.world_to_cell(x, y)
+        if occupied[r, c]:
+            assert fc.obstacle_distance_m(x, y) <= 0.01
+        else:
+            assert fc.obstacle_distance_m(x, y) == pytest.approx(edt[r, c], abs=0.015)

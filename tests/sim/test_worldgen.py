@@ -11,7 +11,15 @@ import pytest
 from mjnav.cli import main
 from mjnav.geometry import Pose2D
 from mjnav.sim import MapConversionError, Simulator, world_info
-from mjnav.sim.worldgen import add_border, load_grid_map, merge_rectangles, write_scene_from_map
+from mjnav.sim.worldgen import (
+    GridMap,
+    add_border,
+    choose_goal,
+    choose_start_goal,
+    load_grid_map,
+    merge_rectangles,
+    write_scene_from_map,
+)
 
 MAP_TEXT = """type octile
 height 6
@@ -144,3 +152,56 @@ def test_reference_movingai_map_converts(refdata: Path, tmp_path: Path) -> None:
     sim = Simulator(summary.path, seed=0)
     sim.step_until(0.5)
     assert sim.mujoco_warnings() == {} and sim.collisions == 0
+
+
+def _saved_building_map(tmp_path: Path) -> Path:
+    """A map as the mapper saves it: a walled 4 x 4 m building in a 12 x 12 m grid whose outside is unknown."""
+    px = np.full((240, 240), 205, dtype=np.uint8)  # unknown
+    px[80:160, 80:160] = 254  # the building's inside: known free
+    px[80:82, 80:160] = px[158:160, 80:160] = 0  # walls
+    px[80:160, 80:82] = px[80:160, 158:160] = 0
+    return _write_ros_map(tmp_path, px, [-6.0, -6.0, 0.0], 0.05)
+
+
+def test_automatic_start_and_goal_stay_in_known_free_space(tmp_path: Path) -> None:
+    # The saved rooms map gave a goal outside the building: unknown space is never a start or a goal.
+    yaml = _saved_building_map(tmp_path)
+    inside = (-2.0 + 0.1, 2.0 - 0.1)  # the building spans x, y in [-2, 2] (walls 0.1 m thick)
+    for rng in (None, np.random.default_rng(0), np.random.default_rng(1)):
+        summary = write_scene_from_map(yaml, tmp_path / "b.xml", clearance_m=0.5, rng=rng)
+        for pose in (summary.start, summary.goal):
+            assert inside[0] + 0.5 <= pose.x <= inside[1] - 0.5 and inside[0] + 0.5 <= pose.y <= inside[1] - 0.5
+
+
+def test_seeded_start_and_goal_are_repeatable_reachable_and_in_the_band(tmp_path: Path) -> None:
+    src = tmp_path / "tiny.map"
+    src.write_text(MAP_TEXT)
+    grid = add_border(load_grid_map(src, resolution_m=1.0))
+    picks = [
+        choose_start_goal(grid, 0.35, np.random.default_rng(seed), min_distance_m=3.0, max_distance_m=5.0)
+        for seed in range(8)
+    ]
+    again = [
+        choose_start_goal(grid, 0.35, np.random.default_rng(seed), min_distance_m=3.0, max_distance_m=5.0)
+        for seed in range(8)
+    ]
+    assert picks == again
+    assert len({(s.x, s.y) for s, _ in picks}) > 1  # the seed matters
+    for start, goal in picks:
+        assert 3.0 <= start.distance_to(goal) <= 5.0
+        for pose in (start, goal):  # free cells of the map, away from walls
+            row, col = int(pose.y // 1.0) + 1, int(pose.x // 1.0) + 1  # +1: the border moved the origin
+            assert not grid.occupied[row, col]
+
+
+def test_goal_for_a_scene_is_reachable_from_its_start() -> None:
+    from mjnav.sim.truth import shortest_length_m, true_grid
+
+    info = world_info("maze")
+    occupied, frame = true_grid(info.path)
+    grid = GridMap(occupied, frame.resolution_m, (frame.origin_m[0], frame.origin_m[1], 0.0), "maze")
+    for seed in range(3):
+        goal = choose_goal(grid, info.start, 0.5, np.random.default_rng(seed), min_distance_m=2.0, max_distance_m=6.0)
+        assert 2.0 <= info.start.distance_to(goal) <= 6.0
+        # shortest_length_m raises NoPathFound when the goal is unreachable for the robot's radius
+        assert math.isfinite(shortest_length_m(info.path, (info.start.x, info.start.y), (goal.x, goal.y)))

@@ -146,6 +146,10 @@ def test_scene_tree_mirrors_the_meshcat_server() -> None:
     assert len(sent) >= n  # every command went to the sink; the tree keeps only the latest per path
     view.handle("truth", ros.pose_stamped(1.0, "map", Pose2D(1.0, 2.0, 0.0)))
     assert len(scene.commands()) == n  # a new pose replaces the old transform
+    view.handle("truth", ros.pose_stamped(2.0, "map", Pose2D(2.0, 2.0, 0.0)))
+    assert len(scene.commands()) == n + 1  # the driven trail appears with its second point
+    view.handle("truth", ros.pose_stamped(3.0, "map", Pose2D(3.0, 2.0, 0.0)))
+    assert len(scene.commands()) == n + 1  # ... and is replaced as it grows
     scene.delete(f"{ROOT}/world")
     assert not any(p.startswith(f"{ROOT}/world") for p in scene.paths())
     assert sent[-1] == ("delete", f"{ROOT}/world")
@@ -193,3 +197,24 @@ def test_static_html_is_self_contained_and_replays_the_scene(tmp_path: Path) -> 
     ) == pytest.approx(0.5)
     texture = next(c for c in commands if c["path"] == f"{ROOT}/map")["object"]["images"][0]["url"]
     assert texture.startswith("data:image/png;base64,")
+
+
+def test_static_html_shows_the_driven_trail(tmp_path: Path) -> None:
+    from mjnav.viz.view import TRAIL_SPACING_M
+
+    drive = [Pose2D(-3.0 + 0.02 * i, -3.0 + 0.01 * i, 0.46) for i in range(101)]  # 2.24 m at 2 cm steps
+    out = write_static_html(
+        tmp_path / "scene.html",
+        world="rooms",
+        messages=[("truth", ros.pose_stamped(0.1 * i, "map", p)) for i, p in enumerate(drive)],
+    )
+    commands = snapshot_commands(out)
+    trail = [c for c in commands if c["type"] == "set_object" and c["path"] == f"{ROOT}/trail"]
+    assert len(trail) == 1  # the snapshot holds the newest trail
+    geometry = trail[0]["object"]["geometries"][0]
+    packed = geometry["data"]["attributes"]["position"]["array"]  # a msgpack typed-array extension
+    xyz = np.frombuffer(packed.data, dtype=np.float32).reshape(-1, 3)
+    assert xyz[0, :2] == pytest.approx([-3.0, -3.0])
+    assert len(xyz) == pytest.approx(math.dist((-3.0, -3.0), (-1.0, -2.0)) / TRAIL_SPACING_M, abs=2)
+    # Every trail point lies on the driven line, in order.
+    assert np.allclose(xyz[:, 1] + 3.0, 0.5 * (xyz[:, 0] + 3.0), atol=1e-5) and np.all(np.diff(xyz[:, 0]) > 0)
