@@ -570,7 +570,11 @@ def information_to_covariance(
 
 @njit(cache=True)
 def max_pyramid(table: NDArray[np.float64], levels: int) -> NDArray[np.float64]:
-    """(levels, H, W): level h at (r, c) = max of ``table`` over rows r..r+2^h−1, cols c..c+2^h−1 (clipped)."""
+    """(levels, H, W): level h at (r, c) = max of ``table`` over rows r..r+2^h−1, cols c..c+2^h−1 (clipped).
+
+    Level h is the maximum of four cells of level h − 1 (offsets 0 and 2^(h−1) in each axis); the inner loops
+    run branch-free over the columns whose right partner exists, so they vectorise.
+    """
     H, W = table.shape
     out = np.empty((levels, H, W))
     out[0] = table
@@ -578,19 +582,21 @@ def max_pyramid(table: NDArray[np.float64], levels: int) -> NDArray[np.float64]:
         half = 1 << (h - 1)
         prev = out[h - 1]
         cur = out[h]
+        inner = max(W - half, 0)
         for r in range(H):
-            r2 = r + half
-            for c in range(W):
-                c2 = c + half
-                v = prev[r, c]
-                if c2 < W and prev[r, c2] > v:
-                    v = prev[r, c2]
-                if r2 < H:
-                    if prev[r2, c] > v:
-                        v = prev[r2, c]
-                    if c2 < W and prev[r2, c2] > v:
-                        v = prev[r2, c2]
-                cur[r, c] = v
+            a = prev[r]
+            row = cur[r]
+            if r + half < H:
+                b = prev[r + half]
+                for c in range(inner):
+                    row[c] = max(max(a[c], a[c + half]), max(b[c], b[c + half]))
+                for c in range(inner, W):
+                    row[c] = max(a[c], b[c])
+            else:
+                for c in range(inner):
+                    row[c] = max(a[c], a[c + half])
+                for c in range(inner, W):
+                    row[c] = a[c]
     return out
 
 

@@ -47,7 +47,9 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
+from scipy.sparse.csgraph import dijkstra
 
 from mjnav.estimation.errors import EstimationError
 from mjnav.estimation.posegraph import PoseGraph, optimize_pose_graph
@@ -225,8 +227,14 @@ class SlamConfig:
         loop_min_travel_m: ... and the robot has travelled at least this far since it (so a loop closure is a
             return to a place, not the corridor just driven), metres.
         loop_resolution_m: cell of the submaps' likelihood fields, metres.
-        loop_window_m: loop search half-width in x and y, metres.
-        loop_window_rad: loop search half-width in θ, radians.
+        loop_window_m: loop search half-width in x and y, metres (the largest: the window of a candidate is
+            ``loop_window_sigmas`` standard deviations of its pose relative to the new keyframe, along the least
+            uncertain chain of graph edges, clamped to [``loop_min_window_m``, ``loop_window_m``]).
+        loop_window_rad: loop search half-width in θ, radians (likewise, clamped to [``loop_min_window_rad``,
+            ``loop_window_rad``]).
+        loop_window_sigmas: loop search half-widths in standard deviations of the relative pose.
+        loop_min_window_m: smallest loop search half-width in x and y, metres.
+        loop_min_window_rad: smallest loop search half-width in θ, radians.
         loop_max_range_m: submap points and loop-scan points beyond this range from their keyframe are dropped,
             metres.
         loop_min_score: minimum mean likelihood (0..1) of an accepted loop match.
@@ -265,6 +273,9 @@ class SlamConfig:
     loop_resolution_m: float = 0.1
     loop_window_m: float = 2.0
     loop_window_rad: float = math.radians(30.0)
+    loop_window_sigmas: float = 3.0
+    loop_min_window_m: float = 0.3
+    loop_min_window_rad: float = math.radians(5.0)
     loop_max_range_m: float = 15.0
     loop_min_score: float = 0.5
     loop_min_inliers: float = 0.6
@@ -351,6 +362,8 @@ class _Graph:
     measurements: list[FloatArray] = field(default_factory=list)
     information: list[FloatArray] = field(default_factory=list)
     loop: list[bool] = field(default_factory=list)
+    var_t: list[float] = field(default_factory=list)  # per edge: translational variance (1 / information[0, 0])
+    var_r: list[float] = field(default_factory=list)  # per edge: rotational variance (1 / information[2, 2])
 
 
 class GraphSlam:
@@ -611,8 +624,11 @@ class GraphSlam:
         if k > 0:
             g.edges.append((k - 1, k))
             g.measurements.append(z)
-            g.information.append(self._edge_information(z))
+            info = self._edge_information(z)
+            g.information.append(info)
             g.loop.append(False)
+            g.var_t.append(1.0 / info[0, 0])
+            g.var_r.append(1.0 / info[2, 2])
         cfg = self.config
         if (k + 1) % cfg.submap_keyframes == 0:
             self._finish_submap(range(k + 1 - cfg.submap_keyframes, k + 1))
@@ -678,6 +694,26 @@ class GraphSlam:
             cache.popitem(last=False)
         return entry
 
+    def _chain_variances(self, k: int) -> tuple[FloatArray, FloatArray]:
+        """Uncertainty of every keyframe relative to keyframe k: (K,) translational (m²) and (K,) rotational
+        (rad²) variances summed along the least uncertain chain of graph edges (Dijkstra; ∞ if unconnected).
+
+        A chain's relative pose is the composition of its edges, so their variances add; an edge's heading
+        variance also moves the chain's far end, counted at the lever ``loop_search_radius_m`` (the distance
+        at which loop candidates are searched). Loop-closure edges shorten the chains: after a closure the
+        places it joined are close in the graph, and the loop search around them needs only a small window.
+        """
+        g = self._graph
+        n = len(g.poses)
+        e = np.asarray(g.edges, dtype=np.int64).reshape(-1, 2)
+        v_r = np.asarray(g.var_r, dtype=np.float64)
+        v_t = np.asarray(g.var_t, dtype=np.float64) + v_r * self.config.loop_search_radius_m**2
+        out = []
+        for w in (v_t, v_r):
+            adj = sp.csr_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n))
+            out.append(np.asarray(dijkstra(adj, directed=False, indices=k), dtype=np.float64))
+        return out[0], out[1]
+
     def _close_loops(self, k: int) -> float:
         """Match keyframe k against nearby older submaps and add the accepted loop edges; returns the sum of their
         χ² errors at the current poses (0 when none was added)."""
@@ -706,16 +742,19 @@ class GraphSlam:
         step = cfg.loop_resolution_m / max(d_max, 1.0)  # the farthest point moves at most one cell per step
         chi2 = 0.0
         info = np.diag([cfg.loop_sigma_m**-2, cfg.loop_sigma_m**-2, cfg.loop_sigma_rad**-2])
+        var_t, var_r = self._chain_variances(k)
         for _d, i in candidates[: cfg.loop_candidates]:
             sub = self._submaps[i]
             matcher, ref = self._submap_matchers(i)
             init = relative(poses[sub.anchor], here)
+            s_t = cfg.loop_window_sigmas * math.sqrt(var_t[sub.anchor])
+            s_r = cfg.loop_window_sigmas * math.sqrt(var_r[sub.anchor])
             try:
                 coarse = matcher.match(
                     scan,
                     init,
-                    linear_window_m=cfg.loop_window_m,
-                    angular_window_rad=cfg.loop_window_rad,
+                    linear_window_m=min(cfg.loop_window_m, max(cfg.loop_min_window_m, s_t)),
+                    angular_window_rad=min(cfg.loop_window_rad, max(cfg.loop_min_window_rad, s_r)),
                     angular_step_rad=step,
                     min_score=cfg.loop_min_score,
                 )
@@ -735,6 +774,8 @@ class GraphSlam:
             g.measurements.append(fine.pose.copy())
             g.information.append(info)
             g.loop.append(True)
+            g.var_t.append(cfg.loop_sigma_m**2)
+            g.var_r.append(cfg.loop_sigma_rad**2)
             self._loop_closures += 1
             e = relative(fine.pose, init)
             chi2 += float(e @ info @ e)
