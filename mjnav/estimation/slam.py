@@ -47,10 +47,9 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
-from scipy.sparse.csgraph import dijkstra
 
+from mjnav.estimation._graph_kernels import shortest_paths
 from mjnav.estimation.errors import EstimationError
 from mjnav.estimation.posegraph import PoseGraph, optimize_pose_graph
 from mjnav.estimation.scan_matching import (
@@ -108,6 +107,21 @@ def invert(a: ArrayLike) -> FloatArray:
 def relative(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """a⁻¹ ∘ b of (..., 3) poses: b seen from a."""
     return compose(invert(a), b)
+
+
+def _relative1(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a⁻¹ ∘ b of two single (3,) poses (:func:`relative` without the array overhead)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    th = (b[2] - a[2] + math.pi) % (2.0 * math.pi) - math.pi
+    return np.array((c * dx + s * dy, -s * dx + c * dy, th))
+
+
+def _compose1(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a ∘ b of two single (3,) poses (:func:`compose` without the array overhead)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    th = (a[2] + b[2] + math.pi) % (2.0 * math.pi) - math.pi
+    return np.array((a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], th))
 
 
 def _transform(pose: FloatArray, pts: FloatArray) -> FloatArray:
@@ -451,7 +465,7 @@ class GraphSlam:
 
     def map_to_odom(self) -> FloatArray:
         """(3,) the ``map → odom`` transform (x, y, θ): pose_map ∘ pose_odom⁻¹ at the latest scan."""
-        return compose(self._pose, invert(self._odom))
+        return _compose1(self._pose, _relative1(self._odom, np.zeros(3)))
 
     def keyframe_poses(self) -> FloatArray:
         """(K, 3) keyframe poses in ``map`` (the pose-graph vertices, optimised after each loop closure)."""
@@ -537,13 +551,13 @@ class GraphSlam:
             self._add_keyframe(t, scan, loop=False)
             self._record(t)
             return self._estimate(1.0, True, 0)
-        predicted = compose(self._pose, relative(self._odom, odom))
+        predicted = _compose1(self._pose, _relative1(self._odom, odom))
         pose, cov, score, matched = self._match_local(scan, predicted)
         self._pose, self._odom = pose, odom
         self._cov = cov
         kf = -1
         last = self._graph.poses[-1]
-        d = relative(last, pose)
+        d = _relative1(last, pose)
         if math.hypot(d[0], d[1]) >= cfg.keyframe_distance_m or abs(d[2]) >= cfg.keyframe_angle_rad:
             kf = self._add_keyframe(t, scan, loop=True)
         self._record(t)
@@ -556,7 +570,7 @@ class GraphSlam:
         k = len(self._graph.poses) - 1
         self._stamps.append(t)
         self._scan_kf.append(k)
-        self._scan_rel.append(relative(self._graph.poses[k], self._pose))
+        self._scan_rel.append(_relative1(self._graph.poses[k], self._pose))
 
     def _floor_cov(self, cov: FloatArray) -> FloatArray:
         return _floor_cov(cov, self.config.min_sigma_m, self.config.min_sigma_rad)
@@ -592,7 +606,7 @@ class GraphSlam:
                 coarse = fine
         except ScanMatchError:
             return coarse.pose.copy(), self._floor_cov(coarse.covariance), 0.0, True
-        jump = relative(coarse.pose, fine.pose)
+        jump = _relative1(coarse.pose, fine.pose)
         if (
             fine.score < cfg.min_match_inliers
             or math.hypot(jump[0], jump[1]) > 2.0 * cfg.match_resolution_m + 0.05
@@ -617,7 +631,7 @@ class GraphSlam:
         self._kf_scans.append(scan)
         self._kf_stamps.append(t)
         if k > 0:
-            z = relative(g.poses[k - 1], g.poses[k])
+            z = _relative1(g.poses[k - 1], g.poses[k])
             self._kf_travel.append(self._kf_travel[-1] + math.hypot(z[0], z[1]))
         else:
             self._kf_travel.append(0.0)
@@ -650,7 +664,7 @@ class GraphSlam:
             if max_range < self.config.max_range_m:
                 p = p[np.einsum("ij,ij->i", p, p) < max_range * max_range]
             if p.shape[0]:
-                chunks.append(_transform(relative(frame_pose, self._graph.poses[j]), p))
+                chunks.append(_transform(_relative1(frame_pose, self._graph.poses[j]), p))
         return np.concatenate(chunks) if chunks else np.zeros((0, 2))
 
     def _rebuild_local_map(self) -> None:
@@ -704,15 +718,11 @@ class GraphSlam:
         places it joined are close in the graph, and the loop search around them needs only a small window.
         """
         g = self._graph
-        n = len(g.poses)
         e = np.asarray(g.edges, dtype=np.int64).reshape(-1, 2)
         v_r = np.asarray(g.var_r, dtype=np.float64)
         v_t = np.asarray(g.var_t, dtype=np.float64) + v_r * self.config.loop_search_radius_m**2
-        out = []
-        for w in (v_t, v_r):
-            adj = sp.csr_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n))
-            out.append(np.asarray(dijkstra(adj, directed=False, indices=k), dtype=np.float64))
-        return out[0], out[1]
+        d = shortest_paths(e[:, 0].copy(), e[:, 1].copy(), np.stack((v_t, v_r)), len(g.poses), k)
+        return d[0], d[1]
 
     def _close_loops(self, k: int) -> float:
         """Match keyframe k against nearby older submaps and add the accepted loop edges; returns the sum of their
@@ -720,19 +730,25 @@ class GraphSlam:
         cfg = self.config
         g = self._graph
         newest_excluded = k - cfg.local_map_keyframes - cfg.loop_min_separation_keyframes
+        subs = self._submaps
+        if not subs:
+            return 0.0
         poses = np.array(g.poses)
         here = poses[k]
-        candidates: list[tuple[float, int]] = []
-        for i, sub in enumerate(self._submaps):
-            last = sub.members.stop - 1
-            if last > newest_excluded or self._kf_travel[k] - self._kf_travel[last] < cfg.loop_min_travel_m:
-                continue
-            d = float(np.min(np.hypot(*(poses[sub.members.start : sub.members.stop, :2] - here[:2]).T)))
-            if d <= cfg.loop_search_radius_m:
-                candidates.append((d, i))
+        # Distance from keyframe k to each submap's nearest member (members are contiguous index ranges).
+        bounds = np.array([(sub.members.start, sub.members.stop) for sub in subs], dtype=np.int64)
+        dist = np.append(np.hypot(poses[:, 0] - here[0], poses[:, 1] - here[1]), np.inf)
+        d_sub = np.minimum.reduceat(dist, bounds.ravel())[::2]
+        travel = np.asarray(self._kf_travel)
+        last = bounds[:, 1] - 1
+        ok = (
+            (last <= newest_excluded)
+            & (travel[k] - travel[last] >= cfg.loop_min_travel_m)
+            & (d_sub <= cfg.loop_search_radius_m)
+        )
+        candidates = sorted(zip(d_sub[ok].tolist(), np.flatnonzero(ok).tolist(), strict=True))
         if not candidates:
             return 0.0
-        candidates.sort()
         scan = self._kf_scans[k].points
         r2 = cfg.loop_max_range_m**2
         scan = scan[np.einsum("ij,ij->i", scan, scan) < r2]
@@ -746,7 +762,7 @@ class GraphSlam:
         for _d, i in candidates[: cfg.loop_candidates]:
             sub = self._submaps[i]
             matcher, ref = self._submap_matchers(i)
-            init = relative(poses[sub.anchor], here)
+            init = _relative1(poses[sub.anchor], here)
             s_t = cfg.loop_window_sigmas * math.sqrt(var_t[sub.anchor])
             s_r = cfg.loop_window_sigmas * math.sqrt(var_r[sub.anchor])
             try:
@@ -763,7 +779,7 @@ class GraphSlam:
                 )
             except ScanMatchError:
                 continue
-            jump = relative(coarse.pose, fine.pose)
+            jump = _relative1(coarse.pose, fine.pose)
             if (
                 fine.degenerate  # a corridor: the match slides along it
                 or fine.score < cfg.loop_min_inliers
@@ -777,26 +793,28 @@ class GraphSlam:
             g.var_t.append(cfg.loop_sigma_m**2)
             g.var_r.append(cfg.loop_sigma_rad**2)
             self._loop_closures += 1
-            e = relative(fine.pose, init)
+            e = _relative1(fine.pose, init)
             chi2 += float(e @ info @ e)
         return chi2
 
     def _optimize(self) -> None:
         g = self._graph
         graph = self.pose_graph()
-        result = optimize_pose_graph(graph, robust="huber", objective="g2o", init="graph", max_iterations=30)
+        result = optimize_pose_graph(
+            graph, robust="huber", objective="g2o", init="graph", max_iterations=30, tolerance=1e-6
+        )
         k = len(g.poses) - 1
         old_last = g.poses[k]
         g.poses = [p.copy() for p in result.poses]
         # The latest pose follows its keyframe (it is keyframe k itself when called from _add_keyframe).
-        self._pose = compose(g.poses[k], relative(old_last, self._pose))
+        self._pose = _compose1(g.poses[k], _relative1(old_last, self._pose))
         self._optimizations += 1
         self._grid_dirty = True
 
     # -- the occupancy grid --------------------------------------------------------------------------------------
 
     def _laser_pose(self, k: int) -> FloatArray:
-        return compose(self._graph.poses[k], np.asarray(self.config.laser_offset, dtype=np.float64))
+        return _compose1(self._graph.poses[k], np.asarray(self.config.laser_offset, dtype=np.float64))
 
     def _insert_into_grid(self, k: int) -> bool:
         """Fuse keyframe k into the current grid; False when its points fall outside (a re-render is needed)."""
