@@ -367,6 +367,7 @@ class _Submap:
     anchor: int  # keyframe index of the submap frame
     members: range  # keyframe indices
     points: FloatArray  # (P, 2) in the anchor's frame
+    frames: FloatArray  # (len(members), 3) the members' poses in the anchor's frame when the submap was built
 
 
 @dataclass
@@ -504,7 +505,7 @@ class GraphSlam:
         )
 
     def loop_edges(self) -> NDArray[np.int64]:
-        """(L, 2) keyframe index pairs (anchor, keyframe) of the accepted loop closures."""
+        """(L, 2) keyframe index pairs (submap member, keyframe) of the accepted loop closures."""
         g = self._graph
         idx = [e for e, is_loop in zip(g.edges, g.loop, strict=True) if is_loop]
         return np.array(idx, dtype=np.int64).reshape(-1, 2)
@@ -677,10 +678,12 @@ class GraphSlam:
             return
         table, frame, scale = likelihood_field(pts, cfg.match_resolution_m)
         w = math.ceil(cfg.match_window_m / cfg.match_resolution_m)
-        depth = max(1, min(8, math.ceil(math.log2(2 * w + 1)) + 1))
+        # Three levels (blocks of 4 × 4 cells) bound the small front-end window tightly; every further level
+        # costs a pass over the whole table at each keyframe and saves less search than it costs.
+        depth = max(1, min(3, math.ceil(math.log2(2 * w + 1))))
         try:
             self._local = (
-                CorrelativeGridMatcher(table, frame, depth=depth, loglik=table * scale),
+                CorrelativeGridMatcher(table, frame, depth=depth, loglik_scale=scale),
                 PointReference(pts),
             )
         except ScanMatchError:
@@ -690,7 +693,9 @@ class GraphSlam:
         anchor = members.start
         pts = self._points_in(self._graph.poses[anchor], members, self.config.loop_max_range_m)
         if pts.shape[0] >= 3:
-            self._submaps.append(_Submap(anchor, members, pts))
+            a = self._graph.poses[anchor]
+            frames = np.array([_relative1(a, self._graph.poses[j]) for j in members])
+            self._submaps.append(_Submap(anchor, members, pts, frames))
 
     def _submap_matchers(self, index: int) -> tuple[CorrelativeGridMatcher, PointReference]:
         cache = self._submap_cache
@@ -702,7 +707,7 @@ class GraphSlam:
         table, frame, scale = likelihood_field(sub.points, cfg.loop_resolution_m)
         w = math.ceil(cfg.loop_window_m / cfg.loop_resolution_m)
         depth = max(1, min(7, math.ceil(math.log2(2 * w + 1))))
-        entry = (CorrelativeGridMatcher(table, frame, depth=depth, loglik=table * scale), PointReference(sub.points))
+        entry = (CorrelativeGridMatcher(table, frame, depth=depth, loglik_scale=scale), PointReference(sub.points))
         cache[index] = entry
         while len(cache) > cfg.cached_submaps:
             cache.popitem(last=False)
@@ -786,14 +791,19 @@ class GraphSlam:
                 or math.hypot(jump[0], jump[1]) > 2.0 * cfg.loop_resolution_m
             ):
                 continue
-            g.edges.append((sub.anchor, k))
-            g.measurements.append(fine.pose.copy())
+            # The edge joins the keyframe to the submap member nearest to where it matched, through that member's
+            # pose in the submap as built: the submap's own drift since then then bends only the short chain
+            # between that member and the keyframe, not a lever arm from the anchor across the whole submap.
+            near = int(np.argmin(np.hypot(sub.frames[:, 0] - fine.pose[0], sub.frames[:, 1] - fine.pose[1])))
+            z = _relative1(sub.frames[near], fine.pose)
+            g.edges.append((sub.members.start + near, k))
+            g.measurements.append(z)
             g.information.append(info)
             g.loop.append(True)
             g.var_t.append(cfg.loop_sigma_m**2)
             g.var_r.append(cfg.loop_sigma_rad**2)
             self._loop_closures += 1
-            e = _relative1(fine.pose, init)
+            e = _relative1(z, _relative1(poses[sub.members.start + near], here))
             chi2 += float(e @ info @ e)
         return chi2
 
@@ -968,7 +978,7 @@ class Localizer:
         walls = frame.cells_to_world(np.column_stack((rows, cols)))
         table, tframe, scale = likelihood_field(walls, grid.resolution_m, cfg.sigma_m)
         self.resolution_m = grid.resolution_m
-        self._matcher = CorrelativeGridMatcher(table, tframe, depth=7, loglik=table * scale)
+        self._matcher = CorrelativeGridMatcher(table, tframe, depth=7, loglik_scale=scale)
         self._ref = PointReference(walls)
         self._pose: FloatArray | None = None
         self._cov = np.eye(3)
