@@ -367,7 +367,6 @@ class _Submap:
     anchor: int  # keyframe index of the submap frame
     members: range  # keyframe indices
     points: FloatArray  # (P, 2) in the anchor's frame
-    frames: FloatArray  # (len(members), 3) the members' poses in the anchor's frame when the submap was built
 
 
 @dataclass
@@ -505,7 +504,7 @@ class GraphSlam:
         )
 
     def loop_edges(self) -> NDArray[np.int64]:
-        """(L, 2) keyframe index pairs (submap member, keyframe) of the accepted loop closures."""
+        """(L, 2) keyframe index pairs (anchor, keyframe) of the accepted loop closures."""
         g = self._graph
         idx = [e for e, is_loop in zip(g.edges, g.loop, strict=True) if is_loop]
         return np.array(idx, dtype=np.int64).reshape(-1, 2)
@@ -693,9 +692,7 @@ class GraphSlam:
         anchor = members.start
         pts = self._points_in(self._graph.poses[anchor], members, self.config.loop_max_range_m)
         if pts.shape[0] >= 3:
-            a = self._graph.poses[anchor]
-            frames = np.array([_relative1(a, self._graph.poses[j]) for j in members])
-            self._submaps.append(_Submap(anchor, members, pts, frames))
+            self._submaps.append(_Submap(anchor, members, pts))
 
     def _submap_matchers(self, index: int) -> tuple[CorrelativeGridMatcher, PointReference]:
         cache = self._submap_cache
@@ -791,19 +788,14 @@ class GraphSlam:
                 or math.hypot(jump[0], jump[1]) > 2.0 * cfg.loop_resolution_m
             ):
                 continue
-            # The edge joins the keyframe to the submap member nearest to where it matched, through that member's
-            # pose in the submap as built: the submap's own drift since then then bends only the short chain
-            # between that member and the keyframe, not a lever arm from the anchor across the whole submap.
-            near = int(np.argmin(np.hypot(sub.frames[:, 0] - fine.pose[0], sub.frames[:, 1] - fine.pose[1])))
-            z = _relative1(sub.frames[near], fine.pose)
-            g.edges.append((sub.members.start + near, k))
-            g.measurements.append(z)
+            g.edges.append((sub.anchor, k))
+            g.measurements.append(fine.pose.copy())
             g.information.append(info)
             g.loop.append(True)
             g.var_t.append(cfg.loop_sigma_m**2)
             g.var_r.append(cfg.loop_sigma_rad**2)
             self._loop_closures += 1
-            e = _relative1(z, _relative1(poses[sub.members.start + near], here))
+            e = _relative1(fine.pose, init)
             chi2 += float(e @ info @ e)
         return chi2
 
