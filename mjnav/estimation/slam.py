@@ -13,9 +13,13 @@ consecutive keyframes are joined by an edge carrying the front end's relative po
 Back end (every keyframe): every ``submap_keyframes`` consecutive keyframes form a rigid *submap* (their points in
 the frame of its first keyframe, the anchor). A new keyframe is matched against finished submaps whose keyframes
 lie within ``loop_search_radius_m`` of it (nearest first, at most ``loop_candidates`` per keyframe, excluding the
-keyframes of the local map) by the multi-resolution branch and bound of Hess et al. (ICRA 2016) over a wide window
-(``loop_window_m``, ``loop_window_rad``) on a coarse likelihood field, then refined by point-to-line ICP and
-accepted when both the correlative score and the ICP inlier share pass their thresholds. An accepted match is a
+keyframes of the local map) by the multi-resolution branch and bound of Hess et al. (ICRA 2016) on a coarse
+likelihood field, then refined by point-to-line ICP and accepted when both the correlative score and the ICP inlier
+share pass their thresholds. The search window of a candidate follows how uncertain the keyframe's pose is relative
+to the submap's anchor: ``loop_window_sigmas`` standard deviations of the edge variances summed along the least
+uncertain chain of graph edges between them (Dijkstra), clamped between ``loop_min_window_*`` and ``loop_window_*``.
+A place first revisited after a long loop gets the wide window; once a closure has joined the two passes, the next
+keyframes there are searched in a small one, which is most of the loop-search time saved. An accepted match is a
 loop-closure edge (anchor → keyframe); the pose graph is then optimised (sparse Levenberg–Marquardt with CHOLMOD,
 Huber kernel, from the current poses; :func:`~mjnav.estimation.posegraph.optimize_pose_graph`), the keyframes
 move to the optimum, the local map is rebuilt from them and the occupancy grid is re-rendered from them on the
