@@ -21,7 +21,10 @@ for like: the paper scores against hand-verified relations of its own (not shipp
 against the corrected poses. The corrected poses are themselves a SLAM solution that disagrees with the scans:
 the "reference floor" line matches every pair of consecutive scans by PL-ICP started *at the corrected relative
 pose* and prints how far the match ends from it (mean over the pairs PL-ICP accepts). No method that follows the
-scans can score much below that floor; on CSAIL it is several times the published 0.004 m. The published rotational
+scans can score much below that floor; on CSAIL it is several times the published 0.004 m. The paper scores
+against relations given as relative poses, chosen and verified by hand; the "scan-matched relations" line is an
+automatic analogue: the result against those PL-ICP matches themselves (pairs PL-ICP accepts). It is printed for
+context, with its ratio; the verdicts stay on the corrected poses, the issue's metric. The published rotational
 errors are not printed: no source for them could be checked here. The noisy odometry's own error is the baseline.
 
 Time: the process CPU time of each ``GraphSlam.update`` call (front end, loop search and pose-graph optimisation;
@@ -51,6 +54,7 @@ from mjnav.estimation.slam_metrics import (
     consecutive_relations,
     corrupt_odometry,
     distance_relations,
+    relation_error,
     relative_pose_error,
 )
 
@@ -63,11 +67,12 @@ def verdict(ok: bool, text: str) -> None:
     print(f"  goal {text}: {'met' if ok else 'NOT met'}")
 
 
-def reference_floor(log: CarmenLog) -> float:
-    """Mean distance (m) between each consecutive corrected relative pose and the PL-ICP match of the two scans
-    started at it (pairs PL-ICP rejects, degenerate or with under half the points matched, are left out)."""
+def scan_matched_relations(log: CarmenLog) -> tuple[np.ndarray, np.ndarray, float]:
+    """Consecutive scans matched by PL-ICP started at the corrected relative pose, kept when the match is
+    non-degenerate with at least half the points matched: (relations (R, 2), matched relative poses (R, 3), mean
+    distance of the matches from the corrected relative poses in metres: the reference floor)."""
     pts = [log.points(k, max_range_m=30.0) for k in range(len(log))]
-    errors = []
+    rel, meas, errors = [], [], []
     for k in range(len(log) - 1):
         if pts[k].shape[0] < 20 or pts[k + 1].shape[0] < 20:
             continue
@@ -79,10 +84,12 @@ def reference_floor(log: CarmenLog) -> float:
         if not m.degenerate and m.score >= 0.5:
             e = relative(z, m.pose)
             errors.append(float(np.hypot(e[0], e[1])))
-    return float(np.mean(errors))
+            rel.append((k, k + 1))
+            meas.append(m.pose)
+    return np.array(rel, dtype=np.int64), np.array(meas), float(np.mean(errors))
 
 
-def run_log(name: str, seed: int) -> dict[str, float]:
+def run_log(name: str, seed: int, matched: tuple[np.ndarray, np.ndarray, float]) -> dict[str, float]:
     log = read_carmen(REFDATA / "laser2d_carmen" / f"{name}-corrected.log.gz")
     n = len(log)
     ref = log.poses
@@ -113,6 +120,8 @@ def run_log(name: str, seed: int) -> dict[str, float]:
         "cpu_p99_ms": float(np.percentile(cpu, 99) * 1e3),
         "render_s": render_s,
     }
+    m = relation_error(est, matched[0], matched[1])
+    out |= {"m_t": m.trans_mean_m, "m_ts": m.trans_std_m, "m_r": m.rot_mean_deg, "m_n": m.relations}
     for tag, rel in (("c", consecutive_relations(n)), ("d", distance_relations(ref, 1.0))):
         e = relative_pose_error(est, ref, rel)
         o = relative_pose_error(odom, ref, rel)
@@ -152,10 +161,11 @@ def main() -> int:
     all_cpu: list[float] = []
     for name in names:
         published = LOGS[name]
-        runs = [run_log(name, s) for s in range(args.seeds)]
+        matched = scan_matched_relations(read_carmen(REFDATA / "laser2d_carmen" / f"{name}-corrected.log.gz"))
+        runs = [run_log(name, s, matched) for s in range(args.seeds)]
         r = {k: float(np.mean([x[k] for x in runs])) for k in runs[0]}
         all_cpu.append(r["cpu_ms"])
-        floor = reference_floor(read_carmen(REFDATA / "laser2d_carmen" / f"{name}-corrected.log.gz"))
+        floor = matched[2]
         print(
             f"\n{name}: {int(r['scans'])} scans, {r['keyframes']:.0f} keyframes, {r['loops']:.0f} loop closures "
             f"(mean over {args.seeds} seed(s))"
@@ -169,6 +179,10 @@ def main() -> int:
             f"(noisy odometry {r['d_ot']:.4f} m, {r['d_or']:.3f}°)"
         )
         print(f"  reference floor (PL-ICP of consecutive scans from the corrected relative pose): {floor:.4f} m")
+        print(
+            f"  vs scan-matched relations ({r['m_n']:.0f} consecutive pairs, the floor's matches): "
+            f"{r['m_t']:.4f} ± {r['m_ts']:.4f} m, {r['m_r']:.3f}°   (ratio to graph mapping {r['m_t'] / published:.2f})"
+        )
         print(
             f"  time per scan: cpu mean {r['cpu_ms']:.2f} ms, p99 {r['cpu_p99_ms']:.1f} ms "
             f"(wall mean {r['wall_ms']:.2f} ms, p99 {r['wall_p99_ms']:.1f} ms); "
