@@ -29,10 +29,13 @@ Frames (REP-105): ``map`` is fixed; ``odom`` is where wheel odometry integrates;
 ``map → odom`` transform is pose_map ∘ pose_odom⁻¹ (:meth:`GraphSlam.map_to_odom`). The laser sits at
 ``laser_offset`` in ``base_link``; every pose here is a ``base_link`` pose.
 
-Edge information: a front-end edge over a relative motion of d metres and |Δθ| radians has the covariance
+Edge information: a front-end edge over a relative motion of d metres and |Δθ| radians has at least the covariance
 diag(σ_t², σ_t², σ_θ²) with σ_t² = ``edge_sigma_m``² + ``edge_sigma_per_m``²·d and
-σ_θ² = ``edge_sigma_rad``² + ``edge_sigma_rad_per_rad``²·|Δθ|; a loop edge has diag(``loop_sigma_m``²,
-``loop_sigma_m``², ``loop_sigma_rad``²).
+σ_θ² = ``edge_sigma_rad``² + ``edge_sigma_rad_per_rad``²·|Δθ|, raised to the front-end match's own covariance
+(rotated into the edge's frame) where that is larger, with a direction the match cannot observe counted as one
+dead-reckoned scan (0.05 m, 2°): along a corridor the edge stays soft and a loop closure, not the corridor's
+ambiguous match, places the keyframe there. A loop edge has diag(``loop_sigma_m``², ``loop_sigma_m``²,
+``loop_sigma_rad``²).
 
 :class:`Localizer` tracks the pose on a fixed occupancy map from an initial pose and covariance (as RViz's
 "2D Pose Estimate" sends it): odometry predicts the pose and grows the covariance; the scan is matched by branch
@@ -78,6 +81,9 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+
+_DEAD_RECKONING_SIGMA = (0.05, math.radians(2.0))  # σ added to the pose of an unmatched scan (metres, radians)
 
 
 class SlamError(EstimationError, ValueError):
@@ -257,7 +263,8 @@ class SlamConfig:
             metres.
         loop_min_score: minimum mean likelihood (0..1) of an accepted loop match.
         loop_min_inliers: minimum PL-ICP inlier share of an accepted loop match.
-        edge_sigma_m: front-end edge translational σ at zero motion, metres.
+        edge_sigma_m: front-end edge translational σ at zero motion, metres (a floor: the match's own σ counts
+            where larger).
         edge_sigma_per_m: its growth: σ_t² = edge_sigma_m² + edge_sigma_per_m²·d, metres per √metre.
         edge_sigma_rad: front-end edge rotational σ at zero motion, radians.
         edge_sigma_rad_per_rad: its growth with the turned angle, √radians.
@@ -583,7 +590,8 @@ class GraphSlam:
         """Front end: CSM then PL-ICP against the local map; the prediction when both fail."""
         cfg = self.config
         local = self._local
-        dead_reckoning = (predicted, self._cov + np.diag([0.05**2, 0.05**2, math.radians(2.0) ** 2]), 0.0, False)
+        sm, sr = _DEAD_RECKONING_SIGMA
+        dead_reckoning = (predicted, self._cov + np.diag([sm * sm, sm * sm, sr * sr]), 0.0, False)
         if local is None or scan.points.shape[0] < 3:
             return dead_reckoning
         matcher, ref = local
@@ -621,12 +629,27 @@ class GraphSlam:
 
     # -- keyframes, submaps, loops ------------------------------------------------------------------------------
 
-    def _edge_information(self, z: FloatArray) -> FloatArray:
+    def _edge_information(self, z: FloatArray, frame_theta: float) -> FloatArray:
+        """Information of a front-end edge z (in the frame of its first keyframe, heading ``frame_theta``): the
+        motion model's covariance, raised to the front-end match's covariance (map frame, rotated into the edge's)
+        where the match is less certain, so a direction the local map hardly constrains (along a corridor) stays
+        soft in the graph."""
         cfg = self.config
         d = math.hypot(z[0], z[1])
         st = cfg.edge_sigma_m**2 + cfg.edge_sigma_per_m**2 * d
         sr = cfg.edge_sigma_rad**2 + cfg.edge_sigma_rad_per_rad**2 * abs(z[2])
-        return np.diag([1.0 / st, 1.0 / st, 1.0 / sr])
+        c, s = math.cos(frame_theta), math.sin(frame_theta)
+        rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        match = rot @ self._cov @ rot.T
+        # An unobservable direction of the match (variance 1e6) is known as well as one dead-reckoned scan knows
+        # it: eigenvalues capped in units where both of its σ are 1.
+        scale = np.array(
+            [1.0 / _DEAD_RECKONING_SIGMA[0], 1.0 / _DEAD_RECKONING_SIGMA[0], 1.0 / _DEAD_RECKONING_SIGMA[1]]
+        )
+        w, v = np.linalg.eigh(match * np.outer(scale, scale))
+        match = ((v * np.minimum(w, 1.0)) @ v.T) / np.outer(scale, scale)
+        info = np.linalg.inv(_floor_cov(match, math.sqrt(st), math.sqrt(sr)))
+        return 0.5 * (info + info.T)
 
     def _add_keyframe(self, t: float, scan: _Scan, *, loop: bool) -> int:
         g = self._graph
@@ -642,7 +665,7 @@ class GraphSlam:
         if k > 0:
             g.edges.append((k - 1, k))
             g.measurements.append(z)
-            info = self._edge_information(z)
+            info = self._edge_information(z, float(g.poses[k - 1][2]))
             g.information.append(info)
             g.loop.append(False)
             g.var_t.append(1.0 / info[0, 0])
