@@ -2,27 +2,35 @@
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/slam.py                 # four logs, seed 0 (~1-2 min)
-    .venv/bin/python benchmarks/slam.py --seeds 3       # three noise seeds per log
+    .venv/bin/python benchmarks/slam.py                       # four logs, seed 0 (~1 min)
+    .venv/bin/python benchmarks/slam.py --seeds 3             # three noise seeds per log
+    .venv/bin/python benchmarks/slam.py --logs intel,csail    # some of the logs
 
 Each log (``../shared/refdata/laser2d_carmen``: intel, aces, freiburg-079, csail "corrected") is run exactly as
 ``mjnav slam --carmen LOG --seed S`` does: the odometry is the corrected trajectory corrupted with the documented
 seeded noise (default σ = 0.05 m/√m, 0.05 rad/√rad, 0.02 rad/√m; :mod:`mjnav.estimation.slam_metrics`), the SLAM
 starts at the first corrected pose, and every scan's final (optimised) pose is compared with the corrected pose by
 Kümmerle et al. (2009)'s relative error over two relation sets: consecutive scans, and scans 1 m apart along the
-corrected path. The paper's relations were hand-verified, so the comparison is indicative; the corrected poses
-are themselves a SLAM solution (consecutive-scan PL-ICP disagrees with them by 2-3 cm median, ``mjnav
-scanmatch``), which bounds how low any method can score against them.
+corrected path.
 
 Peer: the graph-mapping figures of Kümmerle et al. (2009), mean translational error (Intel 0.031 m, ACES 0.044 m,
-Freiburg 079 0.056 m, MIT CSAIL 0.004 m), as the issue quotes them from a secondary source; they could not be
-checked against the paper here. No other SLAM runs in this benchmark. The noisy odometry's own error is printed
-as the baseline.
+Freiburg 079 0.056 m, MIT CSAIL 0.004 m). They are quoted from secondary sources (the issue, and a second
+independent write-up that gives the same table with standard deviations: 0.031 ± 0.026, 0.044 ± 0.044,
+0.056 ± 0.042, 0.004 ± 0.009 m); the paper itself could not be read here. The comparison is indicative, not like
+for like: the paper scores against hand-verified relations of its own (not shipped with the logs), this benchmark
+against the corrected poses. The corrected poses are themselves a SLAM solution that disagrees with the scans:
+the "reference floor" line matches every pair of consecutive scans by PL-ICP started *at the corrected relative
+pose* and prints how far the match ends from it (mean over the pairs PL-ICP accepts). No method that follows the
+scans can score much below that floor; on CSAIL it is several times the published 0.004 m. The paper scores
+against relations given as relative poses, chosen and verified by hand; the "scan-matched relations" line is an
+automatic analogue: the result against those PL-ICP matches themselves (pairs PL-ICP accepts). It is printed for
+context, with its ratio; the verdicts stay on the corrected poses, the issue's metric. The published rotational
+errors are not printed: no source for them could be checked here. The noisy odometry's own error is the baseline.
 
-Time: wall time of each ``GraphSlam.update`` call (front end, loop search and pose-graph optimisation; the
-occupancy grid is rendered on request, after the run, and timed separately), mean and 99th percentile over scans,
-and the process's CPU time per scan (everything runs single-threaded, so other jobs on a shared machine do not
-inflate it); the time goal is judged on CPU time.
+Time: the process CPU time of each ``GraphSlam.update`` call (front end, loop search and pose-graph optimisation;
+the occupancy grid is rendered on request, after the run, and timed separately), mean and 99th percentile over
+scans; wall time is printed beside it (on a shared machine it also counts other processes' turns). The time goal
+(mean ≤ 10 ms per scan, ≥ 10× real time at 10 Hz) is judged on CPU time, per log and over the four.
 The logs are sub-sampled (Intel ~0.7 m, ACES and CSAIL ~1 m between scans), so nearly every scan is a keyframe
 there and the per-scan time is a per-keyframe time; Freiburg 079 (~0.1 m) is closer to a 10 Hz stream.
 """
@@ -38,12 +46,15 @@ import numpy as np
 
 from mjnav.commands.slam import CARMEN_MAX_RANGE_M, run_slam
 from mjnav.estimation import read_carmen
-from mjnav.estimation.slam import GraphSlam, SlamConfig
+from mjnav.estimation.carmen import CarmenLog
+from mjnav.estimation.scan_matching import PointReference, ScanMatchError
+from mjnav.estimation.slam import GraphSlam, SlamConfig, relative
 from mjnav.estimation.slam_metrics import (
     DEFAULT_ODOMETRY_NOISE,
     consecutive_relations,
     corrupt_odometry,
     distance_relations,
+    relation_error,
     relative_pose_error,
 )
 
@@ -56,13 +67,35 @@ def verdict(ok: bool, text: str) -> None:
     print(f"  goal {text}: {'met' if ok else 'NOT met'}")
 
 
-def run_log(name: str, seed: int) -> dict[str, float]:
+def scan_matched_relations(log: CarmenLog) -> tuple[np.ndarray, np.ndarray, float]:
+    """Consecutive scans matched by PL-ICP started at the corrected relative pose, kept when the match is
+    non-degenerate with at least half the points matched: (relations (R, 2), matched relative poses (R, 3), mean
+    distance of the matches from the corrected relative poses in metres: the reference floor)."""
+    pts = [log.points(k, max_range_m=30.0) for k in range(len(log))]
+    rel, meas, errors = [], [], []
+    for k in range(len(log) - 1):
+        if pts[k].shape[0] < 20 or pts[k + 1].shape[0] < 20:
+            continue
+        z = relative(log.poses[k], log.poses[k + 1])
+        try:
+            m = PointReference(pts[k]).match(pts[k + 1], z, "plicp", max_correspondence_m=0.3, max_iterations=50)
+        except ScanMatchError:
+            continue
+        if not m.degenerate and m.score >= 0.5:
+            e = relative(z, m.pose)
+            errors.append(float(np.hypot(e[0], e[1])))
+            rel.append((k, k + 1))
+            meas.append(m.pose)
+    return np.array(rel, dtype=np.int64), np.array(meas), float(np.mean(errors))
+
+
+def run_log(name: str, seed: int, matched: tuple[np.ndarray, np.ndarray, float]) -> dict[str, float]:
     log = read_carmen(REFDATA / "laser2d_carmen" / f"{name}-corrected.log.gz")
     n = len(log)
     ref = log.poses
     odom = corrupt_odometry(ref, np.random.default_rng(seed), DEFAULT_ODOMETRY_NOISE)
     slam = GraphSlam(SlamConfig(), initial_pose=ref[0])
-    cpu0 = time.process_time()
+    cpu = np.zeros(n)
     times = run_slam(
         slam,
         log.timestamps,
@@ -71,8 +104,8 @@ def run_log(name: str, seed: int) -> dict[str, float]:
         np.broadcast_to(log.angles, log.ranges.shape),
         np.zeros(n),
         np.full(n, CARMEN_MAX_RANGE_M),
+        cpu_times=cpu,
     )
-    cpu = time.process_time() - cpu0
     t0 = time.perf_counter()
     slam.occupancy_grid()
     render_s = time.perf_counter() - t0
@@ -81,11 +114,14 @@ def run_log(name: str, seed: int) -> dict[str, float]:
         "scans": n,
         "keyframes": slam.num_keyframes,
         "loops": slam.loop_closures,
-        "mean_ms": float(times.mean() * 1e3),
-        "p99_ms": float(np.percentile(times, 99) * 1e3),
-        "cpu_ms": cpu / n * 1e3,
+        "wall_ms": float(times.mean() * 1e3),
+        "wall_p99_ms": float(np.percentile(times, 99) * 1e3),
+        "cpu_ms": float(cpu.mean() * 1e3),
+        "cpu_p99_ms": float(np.percentile(cpu, 99) * 1e3),
         "render_s": render_s,
     }
+    m = relation_error(est, matched[0], matched[1])
+    out |= {"m_t": m.trans_mean_m, "m_ts": m.trans_std_m, "m_r": m.rot_mean_deg, "m_n": m.relations}
     for tag, rel in (("c", consecutive_relations(n)), ("d", distance_relations(ref, 1.0))):
         e = relative_pose_error(est, ref, rel)
         o = relative_pose_error(odom, ref, rel)
@@ -103,7 +139,14 @@ def run_log(name: str, seed: int) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=1, help="noise seeds per log (0..N-1; default 1)")
+    parser.add_argument(
+        "--logs", default=",".join(LOGS), help=f"comma-separated logs to run (default all: {','.join(LOGS)})"
+    )
     args = parser.parse_args()
+    names = [x for x in args.logs.split(",") if x]
+    unknown = [x for x in names if x not in LOGS]
+    if unknown or not names or args.seeds < 1:
+        parser.error(f"--logs must name some of {', '.join(LOGS)} and --seeds must be >= 1")
     if not (REFDATA / "laser2d_carmen").is_dir():
         print("SLAM benchmark: skipped (../shared/refdata/laser2d_carmen not found)")
         return 0
@@ -115,11 +158,14 @@ def main() -> int:
     w.occupancy_grid()
     sigmas = ",".join(f"{v:g}" for v in DEFAULT_ODOMETRY_NOISE)
     print(f"Graph SLAM on the CARMEN corrected logs (odometry noise {sigmas}, seeds 0..{args.seeds - 1})")
-    all_times: list[float] = []
-    for name, published in LOGS.items():
-        runs = [run_log(name, s) for s in range(args.seeds)]
+    all_cpu: list[float] = []
+    for name in names:
+        published = LOGS[name]
+        matched = scan_matched_relations(read_carmen(REFDATA / "laser2d_carmen" / f"{name}-corrected.log.gz"))
+        runs = [run_log(name, s, matched) for s in range(args.seeds)]
         r = {k: float(np.mean([x[k] for x in runs])) for k in runs[0]}
-        all_times.append(r["cpu_ms"])
+        all_cpu.append(r["cpu_ms"])
+        floor = matched[2]
         print(
             f"\n{name}: {int(r['scans'])} scans, {r['keyframes']:.0f} keyframes, {r['loops']:.0f} loop closures "
             f"(mean over {args.seeds} seed(s))"
@@ -132,8 +178,14 @@ def main() -> int:
             f"  1 m apart:   {r['d_t']:.4f} ± {r['d_ts']:.4f} m, {r['d_r']:.3f} ± {r['d_rs']:.3f}°   "
             f"(noisy odometry {r['d_ot']:.4f} m, {r['d_or']:.3f}°)"
         )
+        print(f"  reference floor (PL-ICP of consecutive scans from the corrected relative pose): {floor:.4f} m")
         print(
-            f"  time per scan: mean {r['mean_ms']:.2f} ms, p99 {r['p99_ms']:.1f} ms (cpu {r['cpu_ms']:.2f} ms); "
+            f"  vs scan-matched relations ({r['m_n']:.0f} consecutive pairs, the floor's matches): "
+            f"{r['m_t']:.4f} ± {r['m_ts']:.4f} m, {r['m_r']:.3f}°   (ratio to graph mapping {r['m_t'] / published:.2f})"
+        )
+        print(
+            f"  time per scan: cpu mean {r['cpu_ms']:.2f} ms, p99 {r['cpu_p99_ms']:.1f} ms "
+            f"(wall mean {r['wall_ms']:.2f} ms, p99 {r['wall_p99_ms']:.1f} ms); "
             f"map render after the run {r['render_s']:.2f} s"
         )
         print(f"  ratio mjnav / graph mapping (Kümmerle 2009), consecutive translational: {r['c_t'] / published:.2f}")
@@ -141,11 +193,14 @@ def main() -> int:
             r["c_t"] < published,
             f"mean translational error < {published} m (graph mapping) on consecutive scans ({r['c_t']:.4f} m)",
         )
-        verdict(r["cpu_ms"] <= TIME_GOAL_MS, f"mean time per scan <= {TIME_GOAL_MS:g} ms ({r['cpu_ms']:.2f} ms cpu)")
+        verdict(
+            r["cpu_ms"] <= TIME_GOAL_MS,
+            f"mean time per scan <= {TIME_GOAL_MS:g} ms ({r['cpu_ms']:.2f} ms cpu, p99 {r['cpu_p99_ms']:.1f} ms)",
+        )
     print()
     verdict(
-        float(np.mean(all_times)) <= TIME_GOAL_MS,
-        f"mean time per scan over the four logs <= {TIME_GOAL_MS:g} ms ({np.mean(all_times):.2f} ms cpu)",
+        float(np.mean(all_cpu)) <= TIME_GOAL_MS,
+        f"mean time per scan over the logs run <= {TIME_GOAL_MS:g} ms ({np.mean(all_cpu):.2f} ms cpu)",
     )
     return 0
 

@@ -569,28 +569,56 @@ def information_to_covariance(
 
 
 @njit(cache=True)
-def max_pyramid(table: NDArray[np.float64], levels: int) -> NDArray[np.float64]:
-    """(levels, H, W): level h at (r, c) = max of ``table`` over rows r..r+2^h−1, cols c..c+2^h−1 (clipped)."""
-    H, W = table.shape
+def table_range(values: NDArray[np.float64]) -> tuple[bool, float, float]:
+    """(every value finite, minimum, maximum) of a non-empty 2-D table in one pass."""
+    finite = True
+    lo = np.inf
+    hi = -np.inf
+    for v in values.ravel():
+        if not math.isfinite(v):
+            finite = False
+        elif v < lo:
+            lo = v
+        if v > hi:
+            hi = v
+    return finite, lo, hi
+
+
+@njit(cache=True)
+def max_pyramid(values: NDArray[np.float64], pad: int, levels: int) -> NDArray[np.float64]:
+    """(levels, H, W) of ``values`` padded with ``pad`` rows and columns of zeros on the low sides (H and W the
+    padded sizes): level 0 is the padded table, level h at (r, c) the max of level 0 over rows r..r+2^h−1, cols
+    c..c+2^h−1 (clipped).
+
+    Level h is the maximum of four cells of level h − 1 (offsets 0 and 2^(h−1) in each axis); the inner loops
+    run branch-free over the columns whose right partner exists, so they vectorise.
+    """
+    H = values.shape[0] + pad
+    W = values.shape[1] + pad
     out = np.empty((levels, H, W))
-    out[0] = table
+    base = out[0]
+    base[:pad, :] = 0.0
+    base[pad:, :pad] = 0.0
+    base[pad:, pad:] = values
     for h in range(1, levels):
         half = 1 << (h - 1)
         prev = out[h - 1]
         cur = out[h]
+        inner = max(W - half, 0)
         for r in range(H):
-            r2 = r + half
-            for c in range(W):
-                c2 = c + half
-                v = prev[r, c]
-                if c2 < W and prev[r, c2] > v:
-                    v = prev[r, c2]
-                if r2 < H:
-                    if prev[r2, c] > v:
-                        v = prev[r2, c]
-                    if c2 < W and prev[r2, c2] > v:
-                        v = prev[r2, c2]
-                cur[r, c] = v
+            a = prev[r]
+            row = cur[r]
+            if r + half < H:
+                b = prev[r + half]
+                for c in range(inner):
+                    row[c] = max(max(a[c], a[c + half]), max(b[c], b[c + half]))
+                for c in range(inner, W):
+                    row[c] = max(a[c], b[c])
+            else:
+                for c in range(inner):
+                    row[c] = max(a[c], a[c + half])
+                for c in range(inner, W):
+                    row[c] = a[c]
     return out
 
 
@@ -758,9 +786,11 @@ def neighbourhood_moments(
     half: int,
     res: float,
     ang_step: float,
+    ll_scale: float,
 ) -> NDArray[np.float64]:
     """Covariance (3, 3) of (x, y, θ) offsets under p ∝ exp(Σ log-likelihood) over the (2·half+1)³ fine
-    candidates around (a0, r0, c0) (Olson 2009); units metres and radians."""
+    candidates around (a0, r0, c0) (Olson 2009); the log-likelihood of a point is ``ll_scale × loglik`` at its
+    cell; units metres and radians."""
     A = rows.shape[0]
     m = 2 * half + 1
     vals = np.full(m * m * m, -np.inf)
@@ -775,7 +805,7 @@ def neighbourhood_moments(
                 off[k, 1] = dr * res
                 off[k, 2] = da * ang_step
                 if 0 <= a < A:
-                    v = _score(loglik, rows, cols, a, r0 + dr, c0 + dc)
+                    v = ll_scale * _score(loglik, rows, cols, a, r0 + dr, c0 + dc)
                     vals[k] = v
                     if v > vmax:
                         vmax = v

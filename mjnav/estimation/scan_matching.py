@@ -377,9 +377,12 @@ class CorrelativeGridMatcher:
         depth: pyramid levels (Cartographer's default 7: coarsest cells 64 × 64 fine cells).
         loglik: optional (H, W) table of per-point log-likelihood differences (>= 0, 0 = worst) used for the
             covariance; default log(values / min positive value).
+        loglik_scale: instead of ``loglik``: the log-likelihood table is ``values × loglik_scale`` (> 0), as
+            :func:`likelihood_field` returns it; no second table is built.
 
     Raises:
-        ScanMatchError: bad shapes, values outside [0, 1], a rotated frame or a bad depth.
+        ScanMatchError: bad shapes, values outside [0, 1], a rotated frame, a bad depth, or both ``loglik`` and
+            ``loglik_scale``.
     """
 
     def __init__(
@@ -389,22 +392,30 @@ class CorrelativeGridMatcher:
         *,
         depth: int = 7,
         loglik: ArrayLike | None = None,
+        loglik_scale: float | None = None,
     ) -> None:
         v = np.asarray(values, dtype=np.float64)
         if v.ndim != 2 or v.size == 0 or tuple(v.shape) != tuple(frame.shape):
             raise ScanMatchError(f"values must be a non-empty (H, W) array matching frame.shape, got {v.shape}")
-        if not np.all(np.isfinite(v)) or v.min() < 0.0 or v.max() > 1.0:
+        finite, lo, hi = kern.table_range(v)
+        if not finite or lo < 0.0 or hi > 1.0:
             raise ScanMatchError("values must be finite and within [0, 1]")
         if frame.yaw_rad != 0.0:
             raise ScanMatchError("rotated grid frames are not supported (yaw_rad must be 0)")
+        if loglik is not None and loglik_scale is not None:
+            raise ScanMatchError("give loglik or loglik_scale, not both")
         self.depth = _check_depth(depth)
         self.frame = frame
         # Pad low sides so a level-h block starting left of/below the grid is representable (exact bounds).
         self._pad = (1 << (self.depth - 1)) if self.depth > 1 else 0
         pad = self._pad
-        table = np.zeros((v.shape[0] + pad, v.shape[1] + pad))
-        table[pad:, pad:] = v
-        self._pyramid = kern.max_pyramid(table, self.depth)
+        self._pyramid = kern.max_pyramid(v, pad, self.depth)
+        if loglik_scale is not None:
+            scale = float(loglik_scale)
+            if not (math.isfinite(scale) and scale > 0.0):
+                raise ScanMatchError(f"loglik_scale must be finite and > 0, got {loglik_scale!r}")
+            self._loglik, self._ll_scale = self._pyramid[0], scale
+            return
         if loglik is None:
             pos = v[v > 0.0]
             floor = float(pos.min()) if pos.size else 1.0
@@ -413,8 +424,9 @@ class CorrelativeGridMatcher:
             ll = np.asarray(loglik, dtype=np.float64)
             if ll.shape != v.shape or not np.all(np.isfinite(ll)) or ll.min() < 0.0:
                 raise ScanMatchError("loglik must be a finite (H, W) array >= 0 matching values")
-        self._loglik = np.zeros_like(table)
+        self._loglik = np.zeros((v.shape[0] + pad, v.shape[1] + pad))
         self._loglik[pad:, pad:] = ll
+        self._ll_scale = 1.0
 
     @classmethod
     def from_occupancy_grid(cls, grid: OccupancyGrid, *, depth: int = 7) -> CorrelativeGridMatcher:
@@ -477,7 +489,7 @@ class CorrelativeGridMatcher:
         method: str,
     ) -> ScanMatchResult:
         res = self.frame.resolution_m
-        cov = kern.neighbourhood_moments(self._loglik, rows, cols, a, dr, dc, 2, res, step)
+        cov = kern.neighbourhood_moments(self._loglik, rows, cols, a, dr, dc, 2, res, step, self._ll_scale)
         cov = 0.5 * (cov + cov.T) + np.diag([res * res / 12.0, res * res / 12.0, step * step / 12.0])
         pose = np.array([init[0] + dc * res, init[1] + dr * res, _wrap(init[2] + (a - n_ang) * step)])
         return ScanMatchResult(
@@ -605,7 +617,7 @@ def _csm(
     table, frame, scale = likelihood_field(ref, res, sigma_m)
     w = math.ceil(window_m / res - 1e-9)
     depth = max(1, min(8, math.ceil(math.log2(2 * w + 1)) + 1))
-    matcher = CorrelativeGridMatcher(table, frame, depth=depth, loglik=table * scale)
+    matcher = CorrelativeGridMatcher(table, frame, depth=depth, loglik_scale=scale)
     out = matcher.match(scan, init, linear_window_m=window_m, angular_window_rad=window_rad, min_score=-1.0)
     return ScanMatchResult(
         pose=out.pose,

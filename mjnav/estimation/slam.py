@@ -13,9 +13,13 @@ consecutive keyframes are joined by an edge carrying the front end's relative po
 Back end (every keyframe): every ``submap_keyframes`` consecutive keyframes form a rigid *submap* (their points in
 the frame of its first keyframe, the anchor). A new keyframe is matched against finished submaps whose keyframes
 lie within ``loop_search_radius_m`` of it (nearest first, at most ``loop_candidates`` per keyframe, excluding the
-keyframes of the local map) by the multi-resolution branch and bound of Hess et al. (ICRA 2016) over a wide window
-(``loop_window_m``, ``loop_window_rad``) on a coarse likelihood field, then refined by point-to-line ICP and
-accepted when both the correlative score and the ICP inlier share pass their thresholds. An accepted match is a
+keyframes of the local map) by the multi-resolution branch and bound of Hess et al. (ICRA 2016) on a coarse
+likelihood field, then refined by point-to-line ICP and accepted when both the correlative score and the ICP inlier
+share pass their thresholds. The search window of a candidate follows how uncertain the keyframe's pose is relative
+to the submap's anchor: ``loop_window_sigmas`` standard deviations of the edge variances summed along the least
+uncertain chain of graph edges between them (Dijkstra), clamped between ``loop_min_window_*`` and ``loop_window_*``.
+A place first revisited after a long loop gets the wide window; once a closure has joined the two passes, the next
+keyframes there are searched in a small one, which is most of the loop-search time saved. An accepted match is a
 loop-closure edge (anchor → keyframe); the pose graph is then optimised (sparse Levenberg–Marquardt with CHOLMOD,
 Huber kernel, from the current poses; :func:`~mjnav.estimation.posegraph.optimize_pose_graph`), the keyframes
 move to the optimum, the local map is rebuilt from them and the occupancy grid is re-rendered from them on the
@@ -25,10 +29,13 @@ Frames (REP-105): ``map`` is fixed; ``odom`` is where wheel odometry integrates;
 ``map → odom`` transform is pose_map ∘ pose_odom⁻¹ (:meth:`GraphSlam.map_to_odom`). The laser sits at
 ``laser_offset`` in ``base_link``; every pose here is a ``base_link`` pose.
 
-Edge information: a front-end edge over a relative motion of d metres and |Δθ| radians has the covariance
+Edge information: a front-end edge over a relative motion of d metres and |Δθ| radians has at least the covariance
 diag(σ_t², σ_t², σ_θ²) with σ_t² = ``edge_sigma_m``² + ``edge_sigma_per_m``²·d and
-σ_θ² = ``edge_sigma_rad``² + ``edge_sigma_rad_per_rad``²·|Δθ|; a loop edge has diag(``loop_sigma_m``²,
-``loop_sigma_m``², ``loop_sigma_rad``²).
+σ_θ² = ``edge_sigma_rad``² + ``edge_sigma_rad_per_rad``²·|Δθ|, raised to the front-end match's own covariance
+(rotated into the edge's frame) where that is larger, with a direction the match cannot observe counted as one
+dead-reckoned scan (0.05 m, 2°): along a corridor the edge stays soft and a loop closure, not the corridor's
+ambiguous match, places the keyframe there. A loop edge has diag(``loop_sigma_m``², ``loop_sigma_m``²,
+``loop_sigma_rad``²).
 
 :class:`Localizer` tracks the pose on a fixed occupancy map from an initial pose and covariance (as RViz's
 "2D Pose Estimate" sends it): odometry predicts the pose and grows the covariance; the scan is matched by branch
@@ -49,6 +56,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mjnav.estimation._graph_kernels import shortest_paths
 from mjnav.estimation.errors import EstimationError
 from mjnav.estimation.posegraph import PoseGraph, optimize_pose_graph
 from mjnav.estimation.scan_matching import (
@@ -73,6 +81,9 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+
+_DEAD_RECKONING_SIGMA = (0.05, math.radians(2.0))  # σ added to the pose of an unmatched scan (metres, radians)
 
 
 class SlamError(EstimationError, ValueError):
@@ -106,6 +117,21 @@ def invert(a: ArrayLike) -> FloatArray:
 def relative(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """a⁻¹ ∘ b of (..., 3) poses: b seen from a."""
     return compose(invert(a), b)
+
+
+def _relative1(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a⁻¹ ∘ b of two single (3,) poses (:func:`relative` without the array overhead)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    th = (b[2] - a[2] + math.pi) % (2.0 * math.pi) - math.pi
+    return np.array((c * dx + s * dy, -s * dx + c * dy, th))
+
+
+def _compose1(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a ∘ b of two single (3,) poses (:func:`compose` without the array overhead)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    th = (a[2] + b[2] + math.pi) % (2.0 * math.pi) - math.pi
+    return np.array((a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], th))
 
 
 def _transform(pose: FloatArray, pts: FloatArray) -> FloatArray:
@@ -225,13 +251,20 @@ class SlamConfig:
         loop_min_travel_m: ... and the robot has travelled at least this far since it (so a loop closure is a
             return to a place, not the corridor just driven), metres.
         loop_resolution_m: cell of the submaps' likelihood fields, metres.
-        loop_window_m: loop search half-width in x and y, metres.
-        loop_window_rad: loop search half-width in θ, radians.
+        loop_window_m: loop search half-width in x and y, metres (the largest: the window of a candidate is
+            ``loop_window_sigmas`` standard deviations of its pose relative to the new keyframe, along the least
+            uncertain chain of graph edges, clamped to [``loop_min_window_m``, ``loop_window_m``]).
+        loop_window_rad: loop search half-width in θ, radians (likewise, clamped to [``loop_min_window_rad``,
+            ``loop_window_rad``]).
+        loop_window_sigmas: loop search half-widths in standard deviations of the relative pose.
+        loop_min_window_m: smallest loop search half-width in x and y, metres.
+        loop_min_window_rad: smallest loop search half-width in θ, radians.
         loop_max_range_m: submap points and loop-scan points beyond this range from their keyframe are dropped,
             metres.
         loop_min_score: minimum mean likelihood (0..1) of an accepted loop match.
         loop_min_inliers: minimum PL-ICP inlier share of an accepted loop match.
-        edge_sigma_m: front-end edge translational σ at zero motion, metres.
+        edge_sigma_m: front-end edge translational σ at zero motion, metres (a floor: the match's own σ counts
+            where larger).
         edge_sigma_per_m: its growth: σ_t² = edge_sigma_m² + edge_sigma_per_m²·d, metres per √metre.
         edge_sigma_rad: front-end edge rotational σ at zero motion, radians.
         edge_sigma_rad_per_rad: its growth with the turned angle, √radians.
@@ -265,6 +298,9 @@ class SlamConfig:
     loop_resolution_m: float = 0.1
     loop_window_m: float = 2.0
     loop_window_rad: float = math.radians(30.0)
+    loop_window_sigmas: float = 3.0
+    loop_min_window_m: float = 0.3
+    loop_min_window_rad: float = math.radians(5.0)
     loop_max_range_m: float = 15.0
     loop_min_score: float = 0.5
     loop_min_inliers: float = 0.6
@@ -351,6 +387,8 @@ class _Graph:
     measurements: list[FloatArray] = field(default_factory=list)
     information: list[FloatArray] = field(default_factory=list)
     loop: list[bool] = field(default_factory=list)
+    var_t: list[float] = field(default_factory=list)  # per edge: translational variance (1 / information[0, 0])
+    var_r: list[float] = field(default_factory=list)  # per edge: rotational variance (1 / information[2, 2])
 
 
 class GraphSlam:
@@ -438,7 +476,7 @@ class GraphSlam:
 
     def map_to_odom(self) -> FloatArray:
         """(3,) the ``map → odom`` transform (x, y, θ): pose_map ∘ pose_odom⁻¹ at the latest scan."""
-        return compose(self._pose, invert(self._odom))
+        return _compose1(self._pose, _relative1(self._odom, np.zeros(3)))
 
     def keyframe_poses(self) -> FloatArray:
         """(K, 3) keyframe poses in ``map`` (the pose-graph vertices, optimised after each loop closure)."""
@@ -524,13 +562,13 @@ class GraphSlam:
             self._add_keyframe(t, scan, loop=False)
             self._record(t)
             return self._estimate(1.0, True, 0)
-        predicted = compose(self._pose, relative(self._odom, odom))
+        predicted = _compose1(self._pose, _relative1(self._odom, odom))
         pose, cov, score, matched = self._match_local(scan, predicted)
         self._pose, self._odom = pose, odom
         self._cov = cov
         kf = -1
         last = self._graph.poses[-1]
-        d = relative(last, pose)
+        d = _relative1(last, pose)
         if math.hypot(d[0], d[1]) >= cfg.keyframe_distance_m or abs(d[2]) >= cfg.keyframe_angle_rad:
             kf = self._add_keyframe(t, scan, loop=True)
         self._record(t)
@@ -543,7 +581,7 @@ class GraphSlam:
         k = len(self._graph.poses) - 1
         self._stamps.append(t)
         self._scan_kf.append(k)
-        self._scan_rel.append(relative(self._graph.poses[k], self._pose))
+        self._scan_rel.append(_relative1(self._graph.poses[k], self._pose))
 
     def _floor_cov(self, cov: FloatArray) -> FloatArray:
         return _floor_cov(cov, self.config.min_sigma_m, self.config.min_sigma_rad)
@@ -552,7 +590,8 @@ class GraphSlam:
         """Front end: CSM then PL-ICP against the local map; the prediction when both fail."""
         cfg = self.config
         local = self._local
-        dead_reckoning = (predicted, self._cov + np.diag([0.05**2, 0.05**2, math.radians(2.0) ** 2]), 0.0, False)
+        sm, sr = _DEAD_RECKONING_SIGMA
+        dead_reckoning = (predicted, self._cov + np.diag([sm * sm, sm * sm, sr * sr]), 0.0, False)
         if local is None or scan.points.shape[0] < 3:
             return dead_reckoning
         matcher, ref = local
@@ -579,7 +618,7 @@ class GraphSlam:
                 coarse = fine
         except ScanMatchError:
             return coarse.pose.copy(), self._floor_cov(coarse.covariance), 0.0, True
-        jump = relative(coarse.pose, fine.pose)
+        jump = _relative1(coarse.pose, fine.pose)
         if (
             fine.score < cfg.min_match_inliers
             or math.hypot(jump[0], jump[1]) > 2.0 * cfg.match_resolution_m + 0.05
@@ -590,12 +629,27 @@ class GraphSlam:
 
     # -- keyframes, submaps, loops ------------------------------------------------------------------------------
 
-    def _edge_information(self, z: FloatArray) -> FloatArray:
+    def _edge_information(self, z: FloatArray, frame_theta: float) -> FloatArray:
+        """Information of a front-end edge z (in the frame of its first keyframe, heading ``frame_theta``): the
+        motion model's covariance, raised to the front-end match's covariance (map frame, rotated into the edge's)
+        where the match is less certain, so a direction the local map hardly constrains (along a corridor) stays
+        soft in the graph."""
         cfg = self.config
         d = math.hypot(z[0], z[1])
         st = cfg.edge_sigma_m**2 + cfg.edge_sigma_per_m**2 * d
         sr = cfg.edge_sigma_rad**2 + cfg.edge_sigma_rad_per_rad**2 * abs(z[2])
-        return np.diag([1.0 / st, 1.0 / st, 1.0 / sr])
+        c, s = math.cos(frame_theta), math.sin(frame_theta)
+        rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        match = rot @ self._cov @ rot.T
+        # An unobservable direction of the match (variance 1e6) is known as well as one dead-reckoned scan knows
+        # it: eigenvalues capped in units where both of its σ are 1.
+        scale = np.array(
+            [1.0 / _DEAD_RECKONING_SIGMA[0], 1.0 / _DEAD_RECKONING_SIGMA[0], 1.0 / _DEAD_RECKONING_SIGMA[1]]
+        )
+        w, v = np.linalg.eigh(match * np.outer(scale, scale))
+        match = ((v * np.minimum(w, 1.0)) @ v.T) / np.outer(scale, scale)
+        info = np.linalg.inv(_floor_cov(match, math.sqrt(st), math.sqrt(sr)))
+        return 0.5 * (info + info.T)
 
     def _add_keyframe(self, t: float, scan: _Scan, *, loop: bool) -> int:
         g = self._graph
@@ -604,15 +658,18 @@ class GraphSlam:
         self._kf_scans.append(scan)
         self._kf_stamps.append(t)
         if k > 0:
-            z = relative(g.poses[k - 1], g.poses[k])
+            z = _relative1(g.poses[k - 1], g.poses[k])
             self._kf_travel.append(self._kf_travel[-1] + math.hypot(z[0], z[1]))
         else:
             self._kf_travel.append(0.0)
         if k > 0:
             g.edges.append((k - 1, k))
             g.measurements.append(z)
-            g.information.append(self._edge_information(z))
+            info = self._edge_information(z, float(g.poses[k - 1][2]))
+            g.information.append(info)
             g.loop.append(False)
+            g.var_t.append(1.0 / info[0, 0])
+            g.var_r.append(1.0 / info[2, 2])
         cfg = self.config
         if (k + 1) % cfg.submap_keyframes == 0:
             self._finish_submap(range(k + 1 - cfg.submap_keyframes, k + 1))
@@ -634,7 +691,7 @@ class GraphSlam:
             if max_range < self.config.max_range_m:
                 p = p[np.einsum("ij,ij->i", p, p) < max_range * max_range]
             if p.shape[0]:
-                chunks.append(_transform(relative(frame_pose, self._graph.poses[j]), p))
+                chunks.append(_transform(_relative1(frame_pose, self._graph.poses[j]), p))
         return np.concatenate(chunks) if chunks else np.zeros((0, 2))
 
     def _rebuild_local_map(self) -> None:
@@ -647,10 +704,12 @@ class GraphSlam:
             return
         table, frame, scale = likelihood_field(pts, cfg.match_resolution_m)
         w = math.ceil(cfg.match_window_m / cfg.match_resolution_m)
-        depth = max(1, min(8, math.ceil(math.log2(2 * w + 1)) + 1))
+        # Three levels (blocks of 4 × 4 cells) bound the small front-end window tightly; every further level
+        # costs a pass over the whole table at each keyframe and saves less search than it costs.
+        depth = max(1, min(3, math.ceil(math.log2(2 * w + 1))))
         try:
             self._local = (
-                CorrelativeGridMatcher(table, frame, depth=depth, loglik=table * scale),
+                CorrelativeGridMatcher(table, frame, depth=depth, loglik_scale=scale),
                 PointReference(pts),
             )
         except ScanMatchError:
@@ -672,11 +731,27 @@ class GraphSlam:
         table, frame, scale = likelihood_field(sub.points, cfg.loop_resolution_m)
         w = math.ceil(cfg.loop_window_m / cfg.loop_resolution_m)
         depth = max(1, min(7, math.ceil(math.log2(2 * w + 1))))
-        entry = (CorrelativeGridMatcher(table, frame, depth=depth, loglik=table * scale), PointReference(sub.points))
+        entry = (CorrelativeGridMatcher(table, frame, depth=depth, loglik_scale=scale), PointReference(sub.points))
         cache[index] = entry
         while len(cache) > cfg.cached_submaps:
             cache.popitem(last=False)
         return entry
+
+    def _chain_variances(self, k: int) -> tuple[FloatArray, FloatArray]:
+        """Uncertainty of every keyframe relative to keyframe k: (K,) translational (m²) and (K,) rotational
+        (rad²) variances summed along the least uncertain chain of graph edges (Dijkstra; ∞ if unconnected).
+
+        A chain's relative pose is the composition of its edges, so their variances add; an edge's heading
+        variance also moves the chain's far end, counted at the lever ``loop_search_radius_m`` (the distance
+        at which loop candidates are searched). Loop-closure edges shorten the chains: after a closure the
+        places it joined are close in the graph, and the loop search around them needs only a small window.
+        """
+        g = self._graph
+        e = np.asarray(g.edges, dtype=np.int64).reshape(-1, 2)
+        v_r = np.asarray(g.var_r, dtype=np.float64)
+        v_t = np.asarray(g.var_t, dtype=np.float64) + v_r * self.config.loop_search_radius_m**2
+        d = shortest_paths(e[:, 0].copy(), e[:, 1].copy(), np.stack((v_t, v_r)), len(g.poses), k)
+        return d[0], d[1]
 
     def _close_loops(self, k: int) -> float:
         """Match keyframe k against nearby older submaps and add the accepted loop edges; returns the sum of their
@@ -684,19 +759,25 @@ class GraphSlam:
         cfg = self.config
         g = self._graph
         newest_excluded = k - cfg.local_map_keyframes - cfg.loop_min_separation_keyframes
+        subs = self._submaps
+        if not subs:
+            return 0.0
         poses = np.array(g.poses)
         here = poses[k]
-        candidates: list[tuple[float, int]] = []
-        for i, sub in enumerate(self._submaps):
-            last = sub.members.stop - 1
-            if last > newest_excluded or self._kf_travel[k] - self._kf_travel[last] < cfg.loop_min_travel_m:
-                continue
-            d = float(np.min(np.hypot(*(poses[sub.members.start : sub.members.stop, :2] - here[:2]).T)))
-            if d <= cfg.loop_search_radius_m:
-                candidates.append((d, i))
+        # Distance from keyframe k to each submap's nearest member (members are contiguous index ranges).
+        bounds = np.array([(sub.members.start, sub.members.stop) for sub in subs], dtype=np.int64)
+        dist = np.append(np.hypot(poses[:, 0] - here[0], poses[:, 1] - here[1]), np.inf)
+        d_sub = np.minimum.reduceat(dist, bounds.ravel())[::2]
+        travel = np.asarray(self._kf_travel)
+        last = bounds[:, 1] - 1
+        ok = (
+            (last <= newest_excluded)
+            & (travel[k] - travel[last] >= cfg.loop_min_travel_m)
+            & (d_sub <= cfg.loop_search_radius_m)
+        )
+        candidates = sorted(zip(d_sub[ok].tolist(), np.flatnonzero(ok).tolist(), strict=True))
         if not candidates:
             return 0.0
-        candidates.sort()
         scan = self._kf_scans[k].points
         r2 = cfg.loop_max_range_m**2
         scan = scan[np.einsum("ij,ij->i", scan, scan) < r2]
@@ -706,16 +787,19 @@ class GraphSlam:
         step = cfg.loop_resolution_m / max(d_max, 1.0)  # the farthest point moves at most one cell per step
         chi2 = 0.0
         info = np.diag([cfg.loop_sigma_m**-2, cfg.loop_sigma_m**-2, cfg.loop_sigma_rad**-2])
+        var_t, var_r = self._chain_variances(k)
         for _d, i in candidates[: cfg.loop_candidates]:
             sub = self._submaps[i]
             matcher, ref = self._submap_matchers(i)
-            init = relative(poses[sub.anchor], here)
+            init = _relative1(poses[sub.anchor], here)
+            s_t = cfg.loop_window_sigmas * math.sqrt(var_t[sub.anchor])
+            s_r = cfg.loop_window_sigmas * math.sqrt(var_r[sub.anchor])
             try:
                 coarse = matcher.match(
                     scan,
                     init,
-                    linear_window_m=cfg.loop_window_m,
-                    angular_window_rad=cfg.loop_window_rad,
+                    linear_window_m=min(cfg.loop_window_m, max(cfg.loop_min_window_m, s_t)),
+                    angular_window_rad=min(cfg.loop_window_rad, max(cfg.loop_min_window_rad, s_r)),
                     angular_step_rad=step,
                     min_score=cfg.loop_min_score,
                 )
@@ -724,7 +808,7 @@ class GraphSlam:
                 )
             except ScanMatchError:
                 continue
-            jump = relative(coarse.pose, fine.pose)
+            jump = _relative1(coarse.pose, fine.pose)
             if (
                 fine.degenerate  # a corridor: the match slides along it
                 or fine.score < cfg.loop_min_inliers
@@ -735,27 +819,31 @@ class GraphSlam:
             g.measurements.append(fine.pose.copy())
             g.information.append(info)
             g.loop.append(True)
+            g.var_t.append(cfg.loop_sigma_m**2)
+            g.var_r.append(cfg.loop_sigma_rad**2)
             self._loop_closures += 1
-            e = relative(fine.pose, init)
+            e = _relative1(fine.pose, init)
             chi2 += float(e @ info @ e)
         return chi2
 
     def _optimize(self) -> None:
         g = self._graph
         graph = self.pose_graph()
-        result = optimize_pose_graph(graph, robust="huber", objective="g2o", init="graph", max_iterations=30)
+        result = optimize_pose_graph(
+            graph, robust="huber", objective="g2o", init="graph", max_iterations=30, tolerance=1e-6
+        )
         k = len(g.poses) - 1
         old_last = g.poses[k]
         g.poses = [p.copy() for p in result.poses]
         # The latest pose follows its keyframe (it is keyframe k itself when called from _add_keyframe).
-        self._pose = compose(g.poses[k], relative(old_last, self._pose))
+        self._pose = _compose1(g.poses[k], _relative1(old_last, self._pose))
         self._optimizations += 1
         self._grid_dirty = True
 
     # -- the occupancy grid --------------------------------------------------------------------------------------
 
     def _laser_pose(self, k: int) -> FloatArray:
-        return compose(self._graph.poses[k], np.asarray(self.config.laser_offset, dtype=np.float64))
+        return _compose1(self._graph.poses[k], np.asarray(self.config.laser_offset, dtype=np.float64))
 
     def _insert_into_grid(self, k: int) -> bool:
         """Fuse keyframe k into the current grid; False when its points fall outside (a re-render is needed)."""
@@ -909,7 +997,7 @@ class Localizer:
         walls = frame.cells_to_world(np.column_stack((rows, cols)))
         table, tframe, scale = likelihood_field(walls, grid.resolution_m, cfg.sigma_m)
         self.resolution_m = grid.resolution_m
-        self._matcher = CorrelativeGridMatcher(table, tframe, depth=7, loglik=table * scale)
+        self._matcher = CorrelativeGridMatcher(table, tframe, depth=7, loglik_scale=scale)
         self._ref = PointReference(walls)
         self._pose: FloatArray | None = None
         self._cov = np.eye(3)

@@ -4,7 +4,9 @@
 "On measuring the accuracy of SLAM algorithms", Autonomous Robots 27(4), 2009): for a set of relations (i, j) the
 estimated relative motion δ_ij = x_i⁻¹ ∘ x_j is compared with the reference δ*_ij; the error of a relation is
 e_ij = δ*_ij⁻¹ ∘ δ_ij, its translational part ‖(e_x, e_y)‖ (metres) and its rotational part |e_θ| (degrees). The
-paper reports the mean and standard deviation of both parts over its relations; so does :func:`relative_pose_error`.
+paper reports the mean and standard deviation of both parts over its relations; so do :func:`relative_pose_error`
+(relations from a reference trajectory) and :func:`relation_error` (relations given as measured relative poses, as
+the paper's relation files give them).
 The metric does not depend on the global frame, so no alignment is needed.
 
 The paper's relations were chosen and verified by hand (pairs of nearby poses whose scans overlap). Here the
@@ -41,6 +43,7 @@ __all__ = [
     "consecutive_relations",
     "corrupt_odometry",
     "distance_relations",
+    "relation_error",
     "relative_pose_error",
 ]
 
@@ -103,8 +106,35 @@ def relative_pose_error(estimate: ArrayLike, reference: ArrayLike, relations: Ar
         raise SlamError(f"relations must be a non-empty (R, 2) integer array, got {rel.shape}")
     if rel.min() < 0 or rel.max() >= est.shape[0]:
         raise SlamError(f"relation indices must lie in [0, {est.shape[0]})")
+    return relation_error(est, rel, relative(ref[rel[:, 0]], ref[rel[:, 1]]))
+
+
+def relation_error(estimate: ArrayLike, relations: ArrayLike, measured: ArrayLike) -> RelativePoseError:
+    """Kümmerle et al.'s relative error of ``estimate`` against given relative poses (the paper's form: its
+    relations are measured relative poses, e.g. by scan matching, not poses of a reference trajectory).
+
+    Args:
+        estimate: (N, 3) estimated poses (x, y, θ).
+        relations: (R, 2) index pairs (i, j), R >= 1.
+        measured: (R, 3) the reference relative pose δ*_ij = x_i⁻¹ ∘ x_j of each relation.
+
+    Returns:
+        :class:`RelativePoseError` (standard deviations with ddof 0).
+
+    Raises:
+        SlamError: mismatched shapes, indices out of range, or no relation.
+    """
+    est = _poses(estimate, "estimate")
+    rel = np.asarray(relations)
+    if rel.ndim != 2 or rel.shape[1] != 2 or rel.shape[0] == 0 or rel.dtype.kind not in "iu":
+        raise SlamError(f"relations must be a non-empty (R, 2) integer array, got {rel.shape}")
+    if rel.min() < 0 or rel.max() >= est.shape[0]:
+        raise SlamError(f"relation indices must lie in [0, {est.shape[0]})")
+    meas = _poses(measured, "measured")
+    if meas.shape[0] != rel.shape[0]:
+        raise SlamError(f"need one measured relative pose per relation, got {meas.shape[0]} for {rel.shape[0]}")
     i, j = rel[:, 0], rel[:, 1]
-    err = relative(relative(ref[i], ref[j]), relative(est[i], est[j]))
+    err = relative(meas, relative(est[i], est[j]))
     t = np.hypot(err[:, 0], err[:, 1])
     r = np.degrees(np.abs(err[:, 2]))
     return RelativePoseError(int(t.size), float(t.mean()), float(t.std()), float(r.mean()), float(r.std()), t, r)

@@ -12,6 +12,7 @@ from mjnav.estimation.slam_metrics import (
     consecutive_relations,
     corrupt_odometry,
     distance_relations,
+    relation_error,
     relative_pose_error,
 )
 from tests.estimation._slam_world import ring_drive, scans, true_map
@@ -144,6 +145,22 @@ def test_relative_pose_error_by_hand() -> None:
     # The metric ignores the global frame: moving the whole estimate changes nothing.
     moved = compose(np.array([3.0, -1.0, 0.7]), est)
     assert relative_pose_error(moved, ref, consecutive_relations(3)).trans_mean_m == pytest.approx(e.trans_mean_m)
+
+
+def test_relation_error_takes_measured_relative_poses() -> None:
+    ref = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    est = ref.copy()
+    est[1] = (1.0, 0.1, math.radians(2.0))
+    rel = consecutive_relations(3)
+    # Measured relations equal to the reference's relative poses: the same as relative_pose_error.
+    same = relation_error(est, rel, relative(ref[:-1], ref[1:]))
+    assert same.trans_errors_m == pytest.approx(relative_pose_error(est, ref, rel).trans_errors_m, abs=1e-12)
+    # A relation measured 5 cm longer than the estimate's 1 m step: 5 cm of error, none in rotation.
+    e = relation_error(ref, rel[:1], np.array([[1.05, 0.0, 0.0]]))
+    assert e.trans_errors_m == pytest.approx([0.05], abs=1e-12)
+    assert e.rot_errors_deg == pytest.approx([0.0], abs=1e-12)
+    with pytest.raises(SlamError):
+        relation_error(est, rel, np.zeros((1, 3)))
 
 
 def test_relations() -> None:
