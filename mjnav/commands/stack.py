@@ -12,7 +12,7 @@ from typing import Any
 def register(sub: Any) -> None:
     """Add the ``run`` and ``up`` commands."""
     from mjnav.bus import DEFAULT_PORT, add_bus_arguments
-    from mjnav.runtime.launcher import HUNG_TIMEOUT_S
+    from mjnav.runtime.launcher import FIRST_STEP_TIMEOUT_S, HUNG_TIMEOUT_S
 
     run = sub.add_parser(
         "run",
@@ -87,7 +87,7 @@ def register(sub: Any) -> None:
         default=HUNG_TIMEOUT_S,
         metavar="S",
         help=f"kill and restart a running service whose status heartbeat stopped for S wall seconds "
-        f"(default {HUNG_TIMEOUT_S:g})",
+        f"(default {HUNG_TIMEOUT_S:g}; before its first step {FIRST_STEP_TIMEOUT_S:g} s: numba compiles on first use)",
     )
     up.add_argument(
         "--secure",

@@ -46,6 +46,9 @@ STOP_GRACE_S = 5.0
 RESTART_BACKOFF_S = 0.5
 #: Default wall seconds without a status heartbeat (sent every second) after which a running service counts as hung.
 HUNG_TIMEOUT_S = 5.0
+#: Wall seconds a service may stay silent before it reported its first step: the first calls of numba kernels compile
+#: them (tens of seconds for SLAM on a fresh checkout, whose caches are cold), which is starting, not hanging.
+FIRST_STEP_TIMEOUT_S = 120.0
 #: Free margin (m) the mapper's grid keeps around the world's static geoms.
 WORLD_MARGIN_M = 1.0
 
@@ -78,6 +81,7 @@ class _Child:
     gave_up: bool = False
     pumps: list[threading.Thread] = field(default_factory=list)
     last_status: float | None = None  # wall time of the newest status heartbeat from the current process
+    stepped: bool = False  # the current process reported a step (before that, FIRST_STEP_TIMEOUT_S applies)
     alive: bool = False  # the current process's liveliness token is up
 
 
@@ -97,8 +101,9 @@ class Launcher:
         extra_participants: lockstep participants besides the services (e.g. ``mjnav demo``'s mission client);
             sim time starts once all of them are present.
         seed: seed every service that has a ``seed`` setting (the sim's noise, the planner's randomness).
-        hung_timeout_s: wall seconds without a status heartbeat from a running service (once it sent one) after
-            which it is killed and restarted.
+        hung_timeout_s: wall seconds without a status heartbeat from a running service (once it sent one and
+            reported a step; before its first step :data:`FIRST_STEP_TIMEOUT_S`) after which it is killed and
+            restarted.
         secure: folder of ``mjnav certs`` certificates: the router listens on ``tls/127.0.0.1:<port>`` with mutual
             TLS and the stack's access control (:mod:`mjnav.bus.acl`); each service connects with its own
             certificate. None: plain TCP on loopback, no access control.
@@ -290,6 +295,7 @@ class Launcher:
         with self._lock:
             child.proc = proc
             child.last_status = None
+            child.stepped = False
             child.alive = False
         pump = threading.Thread(target=self._pump, args=(child.spec.name, proc), daemon=True)
         pump.start()
@@ -362,11 +368,12 @@ class Launcher:
         with self._lock:
             last = child.last_status
             token_lost = child.alive and child.spec.name not in self._alive
+            timeout = self.hung_timeout_s if child.stepped else max(self.hung_timeout_s, FIRST_STEP_TIMEOUT_S)
         if last is None:
             return
         if token_lost:
             reason = "its liveliness token vanished"
-        elif now - last > self.hung_timeout_s:
+        elif now - last > timeout:
             reason = f"no status for {now - last:.1f} s"
         else:
             return
@@ -382,6 +389,7 @@ class Launcher:
             for child in self.children:
                 if child.spec.name == msg.service and child.proc is not None and child.proc.pid == int(msg.pid):
                     child.last_status = now
+                    child.stepped = child.stepped or int(msg.steps) > 0
 
     def _on_alive(self, service: str, alive: bool) -> None:
         with self._lock:

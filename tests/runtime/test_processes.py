@@ -109,6 +109,35 @@ def test_launcher_restarts_a_killed_service_and_stops_cleanly(peer: Peer) -> Non
     assert "[kinematic]" in text and "restarting" in text and "stopped kinematic" in text
 
 
+def test_a_service_compiling_its_first_step_is_not_taken_for_hung() -> None:
+    """Before its first step a silent service is starting (numba compiles on first calls: tens of seconds on a
+    fresh checkout), so only FIRST_STEP_TIMEOUT_S applies; once it stepped, hung_timeout_s does."""
+    from mjnav.runtime.launcher import FIRST_STEP_TIMEOUT_S, Launcher, _Child
+    from mjnav.runtime.stack import load_stack
+
+    launcher = Launcher(load_stack(STACK), hung_timeout_s=2.0)
+    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    try:
+        child = _Child(launcher.specs[0], proc=proc, last_status=100.0)
+        launcher._check_hung(child, proc, now=100.0 + 10.0)  # silent 10 s, no step yet: starting
+        assert proc.poll() is None
+        launcher._check_hung(child, proc, now=100.0 + FIRST_STEP_TIMEOUT_S + 1.0)
+        assert proc.wait(10.0) == -signal.SIGKILL
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(10.0)
+    stepped = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    try:
+        child = _Child(launcher.specs[0], proc=stepped, last_status=100.0, stepped=True)
+        launcher._check_hung(child, stepped, now=100.0 + 3.0)  # silent 3 s after stepping: hung
+        assert stepped.wait(10.0) == -signal.SIGKILL
+    finally:
+        if stepped.poll() is None:
+            stepped.kill()
+        stepped.wait(10.0)
+
+
 def _running(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]

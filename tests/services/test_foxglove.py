@@ -154,8 +154,7 @@ def test_the_layout_shows_topics_the_service_streams() -> None:
 def test_a_live_lockstep_stack_streams_scan_map_and_tf() -> None:
     port = free_port()
     start = world_info("rooms").start  # where SLAM starts (else it waits for an initialpose)
-    # A long hung timeout: a cold numba cache (first run of a checkout) makes the first SLAM step take a while.
-    args = ["--only", "sim,slam", "--foxglove", "--world", "rooms", "--hung-timeout", "120"]
+    args = ["--only", "sim,slam", "--foxglove", "--world", "rooms"]
     args += ["--set", f"foxglove.port={port}"]
     args += ["--set", f"slam.initial_pose=[{start.x}, {start.y}, {start.theta}]"]
     with up_process(*args) as (_, proc, lines):
