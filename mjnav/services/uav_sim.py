@@ -111,8 +111,8 @@ class UavSimConfig:
 class UavBridge:
     """Steps a :class:`~mjnav.sim.uav.UavSimulator` tick by tick and connects it to the bus.
 
-    It offers what :class:`~mjnav.services.sim.SimService`'s stepping loop needs of its bridge and runner:
-    ``clock_period_s``, ``wall0`` and ``advance(t, deadline)``.
+    It is the :class:`~mjnav.services.sim.SimStepping` that :class:`~mjnav.services.sim.SimService`'s stepping loop
+    drives.
     """
 
     def __init__(self, sim: Any, bus: Any, config: UavSimConfig, recorder: Any = None) -> None:
@@ -144,6 +144,11 @@ class UavBridge:
         self.watchdog_tripped = False
         self.wall0 = time.monotonic()
         self._started = False
+
+    @property
+    def time_s(self) -> float:
+        """Sim time now, s."""
+        return float(self.sim.time_s)
 
     @property
     def clock_period_s(self) -> float:
@@ -253,7 +258,8 @@ class UavBridge:
 
 
 class UavSimService(SimService):
-    """The quadrotor at ``rtf`` × wall time, in lockstep with the UAV services (the ground sim's loop)."""
+    """The quadrotor at ``rtf`` × wall time, in lockstep with the UAV services: the ground sim's stepping loop
+    (:class:`~mjnav.services.sim.SimService`) driving a :class:`UavBridge`."""
 
     name = "uav_sim"
     config_class = UavSimConfig  # type: ignore[assignment]
@@ -291,8 +297,7 @@ class UavSimService(SimService):
                 camera=cfg.record_camera,
                 track_body=self.sim.body_id,
             )
-        self.bridge: Any = UavBridge(self.sim, self.bus, cfg, self.recorder)
-        self.runner: Any = self.bridge
+        self.bridge = UavBridge(self.sim, self.bus, cfg, self.recorder)
         self.barrier = (
             LockstepBarrier(self.bus, cfg.lockstep_participants, cfg.lockstep_timeout_s, self.log)
             if cfg.lockstep
