@@ -6,13 +6,13 @@ import argparse
 import json
 import math
 import sys
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
 from mjnav.commands._args import non_negative_float
+from mjnav.commands._launch import run_beside_launcher, write_summary
 
 #: The flight client's lockstep name.
 FLIGHT = "flight"
@@ -91,7 +91,7 @@ def _plan(args: argparse.Namespace, pad: Any) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     """``mjnav fly``."""
-    from mjnav.bus import Bus, BusConfig
+    from mjnav.bus import BusConfig
     from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
@@ -150,29 +150,21 @@ def run(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print(f"mjnav fly: {exc}", file=sys.stderr)
         return 2
-    codes: list[int] = []
-    thread = threading.Thread(target=lambda: codes.append(launcher.run(install_signals=False)), daemon=True)
-    thread.start()
-    summary = None
-    try:
-        with Bus.open(BusConfig(mode="client", connect=(launcher.endpoint,)), stack.namespace) as bus:
-            summary = fly_on_bus(bus, stack.names(), plan, rtf)
-            summary.seed = args.seed
-            summary.controller, summary.state = args.controller, args.state
-            summary.wind_mps, summary.gust_mps = args.wind, args.gust
-            summary.wall_s = time.monotonic() - wall0
-    except KeyboardInterrupt:
-        print("mjnav fly: interrupted", file=sys.stderr)
-    except (RuntimeError, TimeoutError) as exc:
-        print(f"mjnav fly: {exc}", file=sys.stderr)
-    finally:
-        launcher.stop_event.set()
-        thread.join(60.0)
+
+    def fly(bus: Any) -> Any:
+        summary = fly_on_bus(bus, stack.names(), plan, rtf)
+        summary.seed = args.seed
+        summary.controller, summary.state = args.controller, args.state
+        summary.wind_mps, summary.gust_mps = args.wind, args.gust
+        summary.wall_s = time.monotonic() - wall0
+        return summary
+
+    bus_config = BusConfig(mode="client", connect=(launcher.endpoint,))
+    summary = run_beside_launcher(launcher, bus_config, stack.namespace, fly, "fly")
     if summary is None:
         return 1
     data = summary.to_dict()
-    if out is not None:
-        (out / "summary.json").write_text(jsonsafe.dumps(data, indent=2) + "\n", encoding="utf-8")
+    write_summary(data, out)
     print(
         f"{data['trajectory']} with {data['controller']} on {data['state']}: RMS {data['rms_error_m']} m, "
         f"max {data['max_error_m']} m; INS RMS {data['ins_rms_m']} m, GPS RMS {data['gps_rms_m']} m; "

@@ -54,6 +54,7 @@ class LockstepBarrier:
         self._published = -math.inf  # newest clock the sim has published (-inf: time has not started)
         self._tick_s = 0.0
         self._blocked_since: float | None = None
+        self._waiting_at: float | None = None  # the sim time the sim waits to step past (None: not waiting)
         self._last_start_log = time.monotonic()
         bus.subscribe("lockstep", service="*", callback=self._on_report, immediate=True)
         bus.watch_lockstep(self._on_token)
@@ -79,10 +80,13 @@ class LockstepBarrier:
             if name not in self._ready or done > self._published + _EPS_S:
                 return  # not a participant (yet), or a report from before the sim restarted
             self._ready[name] = ros.seconds(msg.ready_until)
-            if name in self._left_out:
+            rejoined = name in self._left_out
+            if rejoined:
                 self._left_out.discard(name)
                 self.log.info("lockstep: %s reports again and rejoins", name)
-            self._cond.notify_all()
+            # wake the sim only when it may step now: one wake-up per round, not one per report
+            if rejoined or self._waiting_at is None or not self._blocking(self._waiting_at):
+                self._cond.notify_all()
 
     # ------------------------------------------------------------------------------------------- the sim
 
@@ -126,26 +130,34 @@ class LockstepBarrier:
         """
         deadline = time.monotonic() + timeout_s
         with self._cond:
-            while True:
-                blocking = self._blocking(t)
-                now = time.monotonic()
-                if not blocking:
-                    self._blocked_since = None
-                    return True
-                if self._blocked_since is None:
-                    self._blocked_since = now
-                elif now - self._blocked_since >= self.timeout_s:
-                    for name in blocking:
-                        self.log.warning(
-                            "lockstep: %s has not finished its step due at %.3f s after %.1f s of wall time: "
-                            "going on without it until it reports again",
-                            name,
-                            self._ready[name],
-                            now - self._blocked_since,
-                        )
-                        self._left_out.add(name)
-                    self._blocked_since = None
-                    continue
-                if now >= deadline:
-                    return False
-                self._cond.wait(min(deadline - now, self._blocked_since + self.timeout_s - now))
+            self._waiting_at = t
+            try:
+                return self._wait(t, deadline)
+            finally:
+                self._waiting_at = None
+
+    def _wait(self, t: float, deadline: float) -> bool:
+        """:meth:`wait`'s loop (the condition's lock held)."""
+        while True:
+            blocking = self._blocking(t)
+            now = time.monotonic()
+            if not blocking:
+                self._blocked_since = None
+                return True
+            if self._blocked_since is None:
+                self._blocked_since = now
+            elif now - self._blocked_since >= self.timeout_s:
+                for name in blocking:
+                    self.log.warning(
+                        "lockstep: %s has not finished its step due at %.3f s after %.1f s of wall time: "
+                        "going on without it until it reports again",
+                        name,
+                        self._ready[name],
+                        now - self._blocked_since,
+                    )
+                    self._left_out.add(name)
+                self._blocked_since = None
+                continue
+            if now >= deadline:
+                return False
+            self._cond.wait(min(deadline - now, self._blocked_since + self.timeout_s - now))

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -50,6 +50,8 @@ class FlightControllerConfig:
         state_source: ``ins`` (GPS/INS + IMU) or ``mocap`` (motion capture).
         rpt_eps: RPT tuning ε (poles at 1/ε).
         accel_limit_mps2: outer-loop acceleration command limit per axis (rpt, lqr, hinf), m/s².
+        pid_separation: ``pid``: bandwidth ratio between nested loops — attitude to velocity to position — from
+            which the position P and velocity PI gains follow (:func:`~mjnav.aerial.outer.pid_outer_gains`).
         att_p, rate_p, rate_i, rate_d: attitude P and body-rate PID gains (roll, pitch, yaw).
         setpoint_timeout_s: failsafe after this long without a setpoint in offboard, sim seconds.
         land_speed_mps: descent rate when landing, m/s.
@@ -63,6 +65,7 @@ class FlightControllerConfig:
     state_source: str = "mocap"
     rpt_eps: float = 0.25
     accel_limit_mps2: float = 8.0
+    pid_separation: float = 4.0
     att_p: tuple[float, float, float] = (20.0, 20.0, 3.0)
     rate_p: tuple[float, float, float] = (60.0, 60.0, 10.0)
     rate_i: tuple[float, float, float] = (5.0, 5.0, 2.0)
@@ -81,6 +84,8 @@ class FlightControllerConfig:
         for name in ("rpt_eps", "accel_limit_mps2", "setpoint_timeout_s", "land_speed_mps", "status_rate_hz"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.pid_separation > 1.0:
+            raise ValueError(f"pid_separation must be > 1, got {self.pid_separation}")
 
 
 class _Reference:
@@ -95,16 +100,21 @@ class _Reference:
         self.yaw = yaw_ned
         self.t = t
         if not self.hold:
-            self.spline = CubicSpline(t, pos_ned, axis=0, bc_type="clamped")
+            # (4, N - 1, 3) polynomial coefficients per interval, highest power first
+            self.coeffs = CubicSpline(t, pos_ned, axis=0, bc_type="clamped").c
 
     def at(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """(position, velocity, acceleration, yaw) due at ``now`` (held before the first and after the last)."""
         if self.hold or now <= self.t0 or now >= self.t1:
             i = 0 if (self.hold or now <= self.t0) else -1
             return self.pos[i].copy(), np.zeros(3), np.zeros(3), float(self.yaw[i])
-        s = self.spline
         i = int(np.searchsorted(self.t, now, side="right")) - 1
-        return s(now), s(now, 1), s(now, 2), float(self.yaw[i])
+        c3, c2, c1, c0 = self.coeffs[:, i]  # one interval's cubic, evaluated with its derivatives by Horner
+        dx = now - self.t[i]
+        pos = ((c3 * dx + c2) * dx + c1) * dx + c0
+        vel = (3.0 * c3 * dx + 2.0 * c2) * dx + c1
+        acc = 6.0 * c3 * dx + 2.0 * c2
+        return pos, vel, acc, float(self.yaw[i])
 
 
 class FlightControllerService(Service[FlightControllerConfig]):
@@ -121,11 +131,18 @@ class FlightControllerService(Service[FlightControllerConfig]):
             RptController,
             rpt_gains,
         )
-        from mjnav.aerial.outer import hinf_outer_gains, lqr_outer_gains
+        from mjnav.aerial.outer import hinf_outer_gains, lqr_outer_gains, pid_outer_gains
 
         cfg = self.config
         self.params = QuadrotorParams()
         gains = CascadeGains(att_p=cfg.att_p, rate_p=cfg.rate_p, rate_i=cfg.rate_i, rate_d=cfg.rate_d)
+        if cfg.controller == "pid":  # the P–PI outer loops, spaced from the attitude loop these gains give
+            inner = CascadeController(self.params, gains)
+            pid = pid_outer_gains(
+                min(inner.attitude_bandwidth_rad_s(0), inner.attitude_bandwidth_rad_s(1)), cfg.pid_separation
+            )
+            gains = replace(gains, pos_p=(pid.pos_p,) * 3, vel_p=(pid.vel_p,) * 3, vel_i=(pid.vel_i,) * 3)
+            self.log.info("pid: position P %.2f /s, velocity P %.2f /s, I %.2f /s²", pid.pos_p, pid.vel_p, pid.vel_i)
         outer_gains = {
             "pid": None,
             "rpt": lambda: rpt_gains(cfg.rpt_eps),
@@ -197,11 +214,18 @@ class FlightControllerService(Service[FlightControllerConfig]):
         self._land_yaw = 0.0
         self._still_since: float | None = None  # since when the vehicle sits on the ground while landing
         self._now = 0.0
+        self._outbox: list[tuple[Any, Any]] = []  # (publisher, message) made by this step's tasks
         self.ctl.reset()
 
     def step(self, now: float) -> None:
         self._now = now
-        self.scheduler.tick(now)
+        try:
+            self.scheduler.tick(now)
+        finally:
+            # the step's messages leave together (one Zenoh wake-up, not one per task), in the order made
+            outbox, self._outbox = self._outbox, []
+            for pub, msg in outbox:
+                pub.put(msg)
 
     # ------------------------------------------------------------------------------------------------- tasks
 
@@ -266,7 +290,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
         self.command = self.ctl.update(x, pos, yaw, dt, velocity_ff=vel, accel_ff=acc)
 
     def _servo(self, now: float) -> None:
-        self.rotor_pub.put(ros.joint_state(now, _ROTORS, np.zeros(4), self.command))
+        self._outbox.append((self.rotor_pub, ros.joint_state(now, _ROTORS, np.zeros(4), self.command)))
 
     def _network(self, now: float) -> None:
         from mjnav.aerial.rep103 import enu_to_ned
@@ -328,7 +352,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
         self._log_state(now)
 
     def _log_state(self, now: float) -> None:
-        self.state_pub.put(uav_msgs.string(self.state))
+        self._outbox.append((self.state_pub, uav_msgs.string(self.state)))
 
     def deactivate(self) -> None:
         self.rotor_pub.put(ros.joint_state(self._now, _ROTORS, np.zeros(4), np.zeros(4)))

@@ -26,7 +26,7 @@ import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -143,6 +143,30 @@ class _Every:
         return False
 
 
+class SimStepping(Protocol):
+    """What :class:`SimService`'s stepping loop drives: the extension point for another simulator on the same loop
+    (lockstep barrier, pacing, free-running), such as :class:`~mjnav.services.uav_sim.UavBridge`."""
+
+    #: Wall time (``time.monotonic``) from which the published real-time factor counts; the loop resets it when
+    #: lockstep time starts.
+    wall0: float
+
+    @property
+    def time_s(self) -> float:
+        """Sim time now, s."""
+        ...
+
+    @property
+    def clock_period_s(self) -> float:
+        """Sim seconds between two ``clock`` messages (one lockstep round)."""
+        ...
+
+    def advance(self, target_s: float, deadline: float | None = None) -> None:
+        """Step to sim time ``target_s``, publishing what falls due (the clock last); stop early at the
+        ``time.perf_counter`` ``deadline``."""
+        ...
+
+
 class SimBridge:
     """Moves a :class:`~mjnav.sim.Simulator` forward and connects it to the bus (used by the service and
     by ``mjnav sim`` with the bus)."""
@@ -181,8 +205,18 @@ class SimBridge:
         return min(e.period for e in schedules)
 
     def attach(self, runner: SimRunner) -> None:
-        """Make :meth:`publish_due` a hook of ``runner`` (every :attr:`tick_s`)."""
+        """Make :meth:`publish_due` a hook of ``runner`` (every :attr:`tick_s`); :meth:`advance` then steps it."""
         runner.add_hook(lambda sim: self.publish_due(sim.time_s), self.tick_s)
+        self._runner = runner
+
+    @property
+    def time_s(self) -> float:
+        """Sim time now, s."""
+        return float(self.sim.time_s)
+
+    def advance(self, target_s: float, deadline: float | None = None) -> None:
+        """Step the attached runner to ``target_s`` (see :meth:`mjnav.sim.SimRunner.advance`)."""
+        self._runner.advance(target_s, deadline)
 
     @property
     def clock_period_s(self) -> float:
@@ -277,7 +311,17 @@ class SimBridge:
 
 
 class SimService(Service[SimConfig]):
-    """Runs the simulator at ``rtf`` × wall time and bridges it to the bus."""
+    """Runs the simulator at ``rtf`` × wall time and bridges it to the bus.
+
+    The stepping loop (lockstep or free-running, paced at ``rtf``) drives :attr:`bridge`, a :class:`SimStepping`.
+    Another simulator reuses it by subclassing and overriding :meth:`configure` (set ``config`` fields ``rtf``,
+    ``rate_hz``, ``lockstep*``; set :attr:`bridge`, :attr:`barrier` — a
+    :class:`~mjnav.runtime.lockstep.LockstepBarrier` or ``None`` — and :attr:`sim`, whose ``time_s`` and
+    ``collisions`` the periodic log reads) and :meth:`deactivate`, as :mod:`mjnav.services.uav_sim` does.
+    """
+
+    bridge: SimStepping
+    barrier: LockstepBarrier | None
 
     name = "sim"
     config_class = SimConfig
@@ -315,9 +359,9 @@ class SimService(Service[SimConfig]):
             slip_noise_std=k * base.slip_noise_std,
         )
         self.sim = Simulator(cfg.world, seed=cfg.seed, odometry=odometry, watchdog_timeout_s=cfg.watchdog_timeout_s)
-        self.bridge = SimBridge(self.sim, self.bus, cfg)
+        self.bridge = bridge = SimBridge(self.sim, self.bus, cfg)
         self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
-        self.bridge.attach(self.runner)
+        bridge.attach(self.runner)
         self.barrier = (
             LockstepBarrier(self.bus, cfg.lockstep_participants, cfg.lockstep_timeout_s, self.log)
             if cfg.lockstep
@@ -385,7 +429,7 @@ class SimService(Service[SimConfig]):
             self._time_started = True
             self._wall0 = self.bridge.wall0 = time.monotonic()  # the real-time factor counts from here
             barrier.published(0.0, tick)  # before the clock goes out: reports may come back at once
-            self.runner.advance(0.0)  # publishes everything due at t = 0, the clock last
+            self.bridge.advance(0.0)  # publishes everything due at t = 0, the clock last
         rtf = self.config.rtf
         missing = barrier.missing()
         if missing:
@@ -399,7 +443,7 @@ class SimService(Service[SimConfig]):
             self._pace = None
         deadline = time.monotonic() + 1.0 / self.config.rate_hz
         while True:
-            t = self.sim.time_s
+            t = self.bridge.time_s
             if rtf > 0:
                 wall = time.monotonic()
                 if self._pace is None or (t - self._pace[1]) < rtf * (wall - self._pace[0]) - rtf * 0.1:
@@ -409,7 +453,7 @@ class SimService(Service[SimConfig]):
             if not barrier.wait(t, max(0.0, deadline - time.monotonic())):
                 return
             barrier.published(t + tick, tick)
-            self.runner.advance(t + tick)
+            self.bridge.advance(t + tick)
             if time.monotonic() >= deadline:
                 return
 
@@ -418,9 +462,9 @@ class SimService(Service[SimConfig]):
         if cfg.rtf > 0:
             target = cfg.rtf * (time.monotonic() - self._wall0)
             deadline = time.perf_counter() + 2.0 / cfg.rate_hz  # never block the loop for long
-            self.runner.advance(target, deadline)
+            self.bridge.advance(target, deadline)
         else:
-            self.runner.advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
+            self.bridge.advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
 
     def deactivate(self) -> None:
         self.sim.set_command(0.0, 0.0)

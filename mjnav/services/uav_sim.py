@@ -111,8 +111,8 @@ class UavSimConfig:
 class UavBridge:
     """Steps a :class:`~mjnav.sim.uav.UavSimulator` tick by tick and connects it to the bus.
 
-    It offers what :class:`~mjnav.services.sim.SimService`'s stepping loop needs of its bridge and runner:
-    ``clock_period_s``, ``wall0`` and ``advance(t, deadline)``.
+    It is the :class:`~mjnav.services.sim.SimStepping` that :class:`~mjnav.services.sim.SimService`'s stepping loop
+    drives.
     """
 
     def __init__(self, sim: Any, bus: Any, config: UavSimConfig, recorder: Any = None) -> None:
@@ -132,6 +132,7 @@ class UavBridge:
         self._frame = _Every(config.record_fps)
         self._sim_status = msg_class("mjnav_msgs/msg/SimStatus")
         self._fixes: deque[tuple[float, Any]] = deque()  # (publish at, NavSatFix)
+        self._outbox: list[tuple[Any, Any]] = []  # (publisher, message) of the clock period under way
         self.tick_s = 1.0 / config.imu_rate_hz
         self.steps_per_tick = round(self.tick_s / sim.timestep_s)
         if abs(self.steps_per_tick * sim.timestep_s - self.tick_s) > 1e-9 or self.steps_per_tick < 1:
@@ -145,24 +146,46 @@ class UavBridge:
         self._started = False
 
     @property
+    def time_s(self) -> float:
+        """Sim time now, s."""
+        return float(self.sim.time_s)
+
+    @property
     def clock_period_s(self) -> float:
         """Sim seconds between two ``clock`` messages."""
         return self._clock.period
 
     def advance(self, target_s: float, deadline: float | None = None) -> None:
         """Step to sim time ``target_s`` (whole IMU ticks), publishing what falls due; stop early at the
-        ``time.perf_counter`` ``deadline``."""
-        if not self._started:
-            self._started = True
-            self._publish_due(0.0)
-        while (self._ticks + 1) * self.tick_s <= target_s + 1e-9:
-            if deadline is not None and time.perf_counter() >= deadline:
-                return
-            t = self._ticks * self.tick_s
-            self._apply_command(t)
-            self.sim.step(self.steps_per_tick)
-            self._ticks += 1
-            self._publish_due(self._ticks * self.tick_s)
+        ``time.perf_counter`` ``deadline``.
+
+        The messages of a clock period go out together, in their order, when its clock is due (and at the end):
+        one burst per lockstep round costs Zenoh a fraction of the wake-ups of messages spread over the physics
+        steps, and subscribers see nothing of a period before its clock anyway.
+        """
+        try:
+            if not self._started:
+                self._started = True
+                self._publish_due(0.0)
+            while (self._ticks + 1) * self.tick_s <= target_s + 1e-9:
+                if deadline is not None and time.perf_counter() >= deadline:
+                    return
+                t = self._ticks * self.tick_s
+                self._apply_command(t)
+                self.sim.step(self.steps_per_tick)
+                self._ticks += 1
+                self._publish_due(self._ticks * self.tick_s)
+        finally:
+            self._flush()
+
+    def _put(self, name: str, msg: Any) -> None:
+        """Queue ``msg`` for topic ``name`` until the next :meth:`_flush`."""
+        self._outbox.append((self._pub[name], msg))
+
+    def _flush(self) -> None:
+        outbox, self._outbox = self._outbox, []
+        for pub, msg in outbox:
+            pub.put(msg)
 
     def _apply_command(self, t: float) -> None:
         cmd = self._cmd.take()
@@ -175,9 +198,10 @@ class UavBridge:
             self.watchdog_tripped = True
 
     def _publish_due(self, t: float) -> None:
-        sim, cfg, pub = self.sim, self.config, self._pub
+        sim, cfg = self.sim, self.config
         imu = sim.imu()
-        pub["imu"].put(
+        self._put(
+            "imu",
             ros.imu(
                 t,
                 "imu",
@@ -186,12 +210,13 @@ class UavBridge:
                 imu.specific_force_mps2,
                 gyro_variance=cfg.gyro_noise_radps**2,
                 accel_variance=cfg.accel_noise_mps2**2,
-            )
+            ),
         )
         truth = None
         if self._mocap.due(t):
             truth = sim.truth()
-            pub["mocap"].put(
+            self._put(
+                "mocap",
                 uav_msgs.odometry3d(
                     t,
                     "map",
@@ -200,38 +225,41 @@ class UavBridge:
                     truth.quat_wxyz,
                     truth.velocity_mps,
                     truth.angular_velocity_radps,
-                )
+                ),
             )
         if self._truth.due(t):
             truth = truth or sim.truth()
-            pub["ground_truth"].put(uav_msgs.pose_stamped3d(t, "map", truth.position_m, truth.quat_wxyz))
+            self._put("ground_truth", uav_msgs.pose_stamped3d(t, "map", truth.position_m, truth.quat_wxyz))
         if self._gps.due(t):
             lat, lon, alt = sim.gps_fix()
             self._fixes.append((t + cfg.gps_delay_s, uav_msgs.nav_sat_fix(t, lat, lon, alt, cfg.gps_noise_m)))
         while self._fixes and self._fixes[0][0] <= t + 1e-9:
-            pub["gps"].put(self._fixes.popleft()[1])
+            self._put("gps", self._fixes.popleft()[1])
         if self._baro.due(t):
-            pub["baro"].put(uav_msgs.fluid_pressure(t, sim.baro_pa(), cfg.baro_noise_pa**2))
+            self._put("baro", uav_msgs.fluid_pressure(t, sim.baro_pa(), cfg.baro_noise_pa**2))
         if self._status.due(t):
             wall = time.monotonic() - self.wall0
-            pub["sim_status"].put(
+            self._put(
+                "sim_status",
                 self._sim_status(
                     header=ros.header(t, "map"),
                     world=sim.path.stem,
                     collisions=sim.collisions,
                     real_time_factor=t / wall if wall > 0 else 0.0,
                     watchdog_tripped=self.watchdog_tripped,
-                )
+                ),
             )
         if self.recorder is not None and self._frame.due(t):
             self.recorder.capture()
         # The clock goes last: a service that sees clock t has received every message stamped up to t.
         if self._clock.due(t):
-            pub["clock"].put(ros.clock(t))
+            self._put("clock", ros.clock(t))
+            self._flush()
 
 
 class UavSimService(SimService):
-    """The quadrotor at ``rtf`` × wall time, in lockstep with the UAV services (the ground sim's loop)."""
+    """The quadrotor at ``rtf`` × wall time, in lockstep with the UAV services: the ground sim's stepping loop
+    (:class:`~mjnav.services.sim.SimService`) driving a :class:`UavBridge`."""
 
     name = "uav_sim"
     config_class = UavSimConfig  # type: ignore[assignment]
@@ -269,8 +297,7 @@ class UavSimService(SimService):
                 camera=cfg.record_camera,
                 track_body=self.sim.body_id,
             )
-        self.bridge: Any = UavBridge(self.sim, self.bus, cfg, self.recorder)
-        self.runner: Any = self.bridge
+        self.bridge = UavBridge(self.sim, self.bus, cfg, self.recorder)
         self.barrier = (
             LockstepBarrier(self.bus, cfg.lockstep_participants, cfg.lockstep_timeout_s, self.log)
             if cfg.lockstep

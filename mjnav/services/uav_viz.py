@@ -90,7 +90,8 @@ class UavVizService(Service[UavVizConfig]):
         for msg in trajectories:
             self.view.add_trajectory(msg)
         for i, msg in enumerate(poses):  # every true pose extends the trail; the last one places the vehicle
-            self.view.set_pose(msg, redraw_trail=i == len(poses) - 1)
+            last = i == len(poses) - 1
+            self.view.set_pose(msg, redraw_trail=last, place=last)
 
     def deactivate(self) -> None:
         if self.config.static_html:

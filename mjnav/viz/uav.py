@@ -106,10 +106,13 @@ class UavView:
             self.scene.set_object(node, obj)
             self.scene.set_transform(node, transform)
 
-    def set_pose(self, pose_msg: Any, *, redraw_trail: bool = True) -> None:
-        """Move the vehicle to a geometry_msgs/PoseStamped (true pose, ENU) and extend the trail."""
+    def set_pose(self, pose_msg: Any, *, redraw_trail: bool = True, place: bool = True) -> None:
+        """Extend the trail with a geometry_msgs/PoseStamped (true pose, ENU) and, with ``place``, move the vehicle
+        there (a batch of poses moves it once, to its last: every move is a message to the viewer)."""
         m = pose_msg_matrix(pose_msg.pose)
-        self.scene.set_transform(f"{ROOT}/uav", m)
+        if place:
+            self.scene.set_transform(f"{ROOT}/uav", m)
+            self._count("uav")
         p = m[:3, 3].copy()
         if not self.trail or np.linalg.norm(p - self.trail[-1]) >= self.trail_spacing_m:
             self.trail.append(p)
@@ -119,7 +122,6 @@ class UavView:
                 self.trail = self.trail[-1:]
             elif redraw_trail and len(self.trail) >= 2:
                 self._line(f"trail/{self._trail_chunks}", np.array(self.trail), TRAIL_COLOUR)
-        self._count("uav")
 
     def add_trajectory(self, path_msg: Any) -> None:
         """Merge a trajectory's stamped poses into the reference and redraw it."""

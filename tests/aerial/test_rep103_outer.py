@@ -8,16 +8,18 @@ import numpy as np
 import pytest
 
 from mjnav.aerial import (
+    PID,
     CascadeController,
     CascadeGains,
     InvalidParameterError,
     QuadrotorParams,
     RptController,
+    check_loop_separation,
     euler_from_quat,
     quat_to_rotation,
     rpt_poles,
 )
-from mjnav.aerial.outer import hinf_outer_gains, lqr_outer_gains, outer_plant
+from mjnav.aerial.outer import hinf_outer_gains, lqr_outer_gains, outer_plant, pid_outer_gains
 from mjnav.aerial.rep103 import enu_to_ned, flu_to_frd, ned_to_enu, quat_enu_flu_to_ned_frd, quat_ned_frd_to_enu_flu
 
 
@@ -73,3 +75,38 @@ def test_outer_loop_weights_are_checked() -> None:
         lqr_outer_gains(r=0.0)
     with pytest.raises(InvalidParameterError):
         hinf_outer_gains(q_pos=-1.0)
+
+
+def test_pid_cascade_gains_follow_from_loop_separation() -> None:
+    stiff = CascadeGains(att_p=(20.0, 20.0, 3.0), rate_p=(60.0, 60.0, 10.0), rate_d=(0.5, 0.5, 0.0))
+    bandwidth = CascadeController(QuadrotorParams(), stiff).attitude_bandwidth_rad_s()
+    g = pid_outer_gains(bandwidth, separation=4.0, integral_separation=5.0)
+    assert g.vel_p == pytest.approx(bandwidth / 4.0) and g.pos_p == pytest.approx(bandwidth / 16.0)
+    assert g.vel_i / g.vel_p == pytest.approx(g.vel_p / 5.0)
+    # the law a = a_r + vel_p (pos_p e + ė) + vel_i ∫(pos_p e + ė) on the double integrator: stable, and every pole
+    # well inside the attitude loop's bandwidth
+    poles = np.roots([1.0, g.vel_p, g.vel_p * g.pos_p + g.vel_i, g.vel_i * g.pos_p])
+    assert np.all(poles.real < 0)
+    check_loop_separation(poles, bandwidth, 1.5)
+    slower = pid_outer_gains(bandwidth, separation=5.0)
+    assert slower.vel_p < g.vel_p and slower.pos_p < g.pos_p
+
+
+def test_pid_cascade_tracks_a_ramp_under_a_constant_disturbance() -> None:
+    """The velocity integrator removes a constant acceleration disturbance (wind) from a ramp's tracking."""
+    g = pid_outer_gains(40.0)
+    vel_loop = PID(g.vel_p, g.vel_i)
+    pos, vel, dt = np.zeros(3), np.zeros(3), 0.002
+    for k in range(round(15.0 / dt)):
+        t = k * dt
+        ref, vref = np.full(3, 0.5 * t), np.full(3, 0.5)
+        u = vel_loop.update(g.pos_p * (ref - pos) + vref, vel, dt) + np.array([0.4, -0.3, 0.2])
+        vel = vel + u * dt
+        pos = pos + vel * dt
+    assert np.max(np.abs(pos - 0.5 * 15.0)) < 0.01
+
+
+@pytest.mark.parametrize(("bandwidth", "separation"), [(0.0, 4.0), (math.inf, 4.0), (40.0, 1.0), (40.0, math.nan)])
+def test_pid_cascade_gains_are_checked(bandwidth: float, separation: float) -> None:
+    with pytest.raises(InvalidParameterError):
+        pid_outer_gains(bandwidth, separation)

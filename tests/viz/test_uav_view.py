@@ -30,3 +30,18 @@ def test_uav_scene_reference_and_trail(tmp_path: Path) -> None:
     assert view.drawn["uav"] == TRAIL_CHUNK + 50
     html = scene.write_static_html(tmp_path / "uav.html")
     assert html.stat().st_size > 10_000
+
+
+def test_a_batch_of_poses_extends_the_trail_but_moves_the_vehicle_once() -> None:
+    sent: list[str] = []
+    scene = Scene(lambda kind, path, packed: sent.append(kind))
+    view = UavView(scene, trail_spacing_m=0.01)
+    view.setup(load_uav_visual("field"))
+    sent.clear()
+    poses = [uav_msgs.pose_stamped3d(0.02 * i, "map", [0.02 * i, 0.0, 1.5]) for i in range(10)]
+    for i, msg in enumerate(poses):
+        last = i == len(poses) - 1
+        view.set_pose(msg, redraw_trail=last, place=last)
+    assert len(view.trail) == 10 and np.allclose(view.trail[-1], [0.18, 0.0, 1.5])
+    assert view.drawn["uav"] == 1
+    assert sorted(sent) == ["set_object", "set_transform"]  # the trail redrawn once, the vehicle moved once

@@ -1,0 +1,126 @@
+"""Benchmark: CPU seconds per sim second of every process of the UAV stack during a lockstep flight (Linux).
+
+Wall-time real-time factors swing with whatever else runs on the machine; the CPU each process spends per second
+of sim time does much less. This runs `mjnav fly … --rtf max` (every service a process, lockstep), samples the CPU
+time of each process and of its threads (utime + stime from /proc, grouped by thread name: `python` is the
+interpreter's threads, `rx`/`tx`/`acc`/`app`/`net` are Zenoh's runtime threads) and reports the CPU spent between
+sim time starting (uav_sim's "sim time starts") and the flight controller disarming after the landing, divided by
+the flight's sim time. The `fly` row is the command itself: the Zenoh router and the flight client.
+
+Run: .venv/bin/python benchmarks/uav_cpu.py [--state ins|mocap] [--runs N] [--repo DIR]
+(--repo: run another checkout's `mjnav` the same way, for a side-by-side comparison on the same machine.)
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import re
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+Snapshot = dict[tuple[str, str], float]  # (process, thread group) -> CPU seconds
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _children(pid: int) -> list[int]:
+    out: list[int] = []
+    try:
+        for tid in os.listdir(f"/proc/{pid}/task"):
+            out += [int(x) for x in Path(f"/proc/{pid}/task/{tid}/children").read_text().split()]
+    except OSError:
+        pass
+    return out
+
+
+def snapshot(root: int) -> Snapshot:
+    """CPU seconds of every thread group of ``root`` and its descendants, by service name."""
+    snap: Snapshot = collections.defaultdict(float)
+    stack = [root]
+    while stack:
+        pid = stack.pop()
+        stack += _children(pid)
+        try:
+            argv = Path(f"/proc/{pid}/cmdline").read_text().split("\0")
+            name = argv[argv.index("run") + 1] if "run" in argv else ("fly" if "fly" in argv else "")
+            if not name:
+                continue
+            for tid in os.listdir(f"/proc/{pid}/task"):
+                stat = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
+                comm = re.sub(r"[-/]?\d+$", "", stat[stat.index("(") + 1 : stat.rindex(")")])
+                fields = stat.rsplit(")", 1)[1].split()
+                snap[(name, comm)] += (int(fields[11]) + int(fields[12])) / TICK
+        except (OSError, ValueError, IndexError):
+            continue
+    return snap
+
+
+def fly(repo: Path, state: str) -> tuple[dict[str, object], Snapshot, Snapshot]:
+    """One figure-8; returns its summary and the CPU snapshots at sim-time start and at the landing."""
+    cmd = [
+        sys.executable, "-m", "mjnav", "fly", "--trajectory", "figure8", "--controller", "rpt", "--state", state,
+        "--rtf", "max", "--json", "--headless", "--log-level", "INFO", "--port", str(free_port()),
+    ]  # fmt: skip
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}
+    env["PYTHONPATH"] = str(repo)
+    proc = subprocess.Popen(cmd, cwd=repo, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    marks: dict[str, Snapshot] = {}
+    stdout: list[str] = []
+    reader = threading.Thread(target=lambda: stdout.extend(proc.stdout or []), daemon=True)
+    reader.start()
+    for line in proc.stderr or []:
+        if "start" not in marks and "sim time starts" in line:
+            marks["start"] = snapshot(proc.pid)
+        elif "end" not in marks and re.search(r"(landing|failsafe_land) -> disarmed", line):
+            marks["end"] = snapshot(proc.pid)
+    proc.wait(timeout=900)
+    reader.join(10.0)
+    if "start" not in marks or "end" not in marks or not stdout:
+        raise RuntimeError(f"mjnav fly in {repo} did not fly to the end (exit {proc.returncode})")
+    return json.loads(stdout[-1]), marks["start"], marks["end"]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--state", choices=("ins", "mocap"), default="ins")
+    ap.add_argument("--runs", type=int, default=1)
+    ap.add_argument("--repo", type=Path, default=REPO, help="checkout whose mjnav runs (default this one)")
+    args = ap.parse_args()
+    if not Path("/proc/self/task").is_dir():
+        print("needs Linux /proc")
+        return
+    for run in range(args.runs):
+        load = os.getloadavg()[0]
+        summary, start, end = fly(args.repo.resolve(), args.state)
+        sim_s = float(summary["time_s"])  # type: ignore[arg-type]
+        print(
+            f"run {run}: {sim_s:.1f} s sim at {summary['achieved_rtf']}x real time, load average {load:.1f} "
+            f"({os.cpu_count()} cores); RMS {summary['rms_error_m']} m, INS RMS {summary['ins_rms_m']} m"
+        )
+        per: dict[str, dict[str, float]] = collections.defaultdict(dict)
+        for key, cpu in end.items():
+            per[key[0]][key[1]] = cpu - start.get(key, 0.0)
+        total = 0.0
+        for name in sorted(per):
+            cpu = sum(per[name].values())
+            total += cpu
+            threads = ", ".join(f"{t} {1e3 * c / sim_s:.1f}" for t, c in sorted(per[name].items()) if c > 0.005)
+            print(f"  {name:18s} {1e3 * cpu / sim_s:6.1f} ms CPU per sim s  ({threads})")
+        print(f"  {'total':18s} {1e3 * total / sim_s:6.1f} ms CPU per sim s")
+
+
+if __name__ == "__main__":
+    main()
