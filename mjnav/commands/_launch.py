@@ -1,6 +1,6 @@
 """Plumbing shared by the commands that run a stack beside their own client (private: not a command).
 
-``mjnav fly`` uses it; ``mjnav demo`` has the same steps inline.
+``mjnav demo`` and ``mjnav fly`` use it.
 """
 
 from __future__ import annotations

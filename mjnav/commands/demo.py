@@ -7,12 +7,12 @@ import json
 import math
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
+from mjnav.commands._launch import run_beside_launcher, write_summary
 
 #: The demo's mission client: a lockstep participant, so goals leave at the same sim time in every run.
 MISSION = "mission"
@@ -247,7 +247,7 @@ def _run(
     rtf: float,
     out: Path | None,
 ) -> int:
-    from mjnav.bus import Bus, BusConfig, BusConfigError
+    from mjnav.bus import BusConfig, BusConfigError
     from mjnav.bus.acl import AclError
     from mjnav.bus.config import tls_files
     from mjnav.msgs.topics import OPERATOR
@@ -277,33 +277,23 @@ def _run(
     except (ConfigError, BusConfigError, AclError, ValueError) as exc:
         print(f"mjnav demo: {exc}", file=sys.stderr)
         return 2
-    codes: list[int] = []
-    thread = threading.Thread(target=lambda: codes.append(launcher.run(install_signals=False)), daemon=True)
-    thread.start()
-    summary = None
-    trace = None
-    try:
-        with Bus.open(bus_config, stack.namespace) as bus:
-            recorder = TraceRecorder(bus) if out is not None else None
-            summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
-            trace = recorder.trace() if recorder is not None else None
-            summary.seed = args.seed
-            summary.lockstep = not args.free_running
-            summary.wall_s = time.monotonic() - wall0
-    except KeyboardInterrupt:
-        print("mjnav demo: interrupted", file=sys.stderr)
-    except (RuntimeError, TimeoutError) as exc:
-        print(f"mjnav demo: {exc}", file=sys.stderr)
-    finally:
-        launcher.stop_event.set()
-        thread.join(60.0)
-    if summary is None:
+
+    def client(bus: Any) -> tuple[Any, Any]:
+        recorder = TraceRecorder(bus) if out is not None else None
+        summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
+        summary.seed = args.seed
+        summary.lockstep = not args.free_running
+        summary.wall_s = time.monotonic() - wall0
+        return summary, (recorder.trace() if recorder is not None else None)
+
+    result = run_beside_launcher(launcher, bus_config, stack.namespace, client, "demo")
+    if result is None:
         return 1
+    summary, trace = result
     data = summary.to_dict()
-    if out is not None:
-        (out / "summary.json").write_text(jsonsafe.dumps(data, indent=2) + "\n", encoding="utf-8")
-        if trace is not None:
-            _plots(trace, goals, Path(args.world).stem, out)  # the map's name, not world.xml's
+    write_summary(data, out)
+    if out is not None and trace is not None:
+        _plots(trace, goals, Path(args.world).stem, out)  # the map's name, not world.xml's
     _print_summary(data, out)
     if args.json:
         print(jsonsafe.dumps(data))
