@@ -12,6 +12,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -309,3 +310,27 @@ def test_warehouse_with_moving_obstacles_has_no_collision(seed: int) -> None:
         outcome = client.run_goal(5.0, 3.0, timeout_s=200.0, wall_timeout_s=300.0)
         assert outcome.result == "reached", outcome
         assert client.collisions() == 0
+
+
+def _maze_there_and_back(tmp_path: Path, *sets: str) -> dict[str, Any]:
+    """`mjnav demo` in the maze to the far corner and back (seed 2), navigating on SLAM with the truth switched off."""
+    goals = tmp_path / "there_and_back.json"
+    goals.write_text(json.dumps([[3.75, 3.75], [-3.75, -3.75]]))
+    args = ["demo", "--world", "maze", "--goals", str(goals), "--seed", "2", "--rtf", "max", "--json", "--headless"]
+    args += ["--port", str(free_port()), "--set", "sim.publish_ground_truth=false"]
+    for item in sets:
+        args += ["--set", item]
+    stdout, _ = _mjnav(*args).communicate(timeout=900)
+    summary: dict[str, Any] = json.loads(stdout.strip().splitlines()[-1])
+    assert summary["reached"] is True and summary["collisions"] == 0, stdout[-3000:]
+    return summary
+
+
+def test_loop_closures_lower_the_slam_error_on_a_maze_round_trip(tmp_path: Path) -> None:
+    """Back through corridors it mapped on the way out, SLAM closes loops; its trajectory error (against the truth,
+    which no navigation service reads) is lower than the same mission's without loop closure."""
+    closing = _maze_there_and_back(tmp_path)
+    open_loop = _maze_there_and_back(tmp_path, "slam.loop_closure=false")
+    assert closing["pose_source"] == "slam" and closing["loop_closures"] >= 1 and open_loop["loop_closures"] == 0
+    assert closing["ate_rms_m"] < open_loop["ate_rms_m"]
+    assert closing["ate_rms_m"] <= 0.03 and min(closing["map_accuracy"]) >= 0.95
