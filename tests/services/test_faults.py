@@ -76,11 +76,12 @@ def _known_cells(msg: Any) -> int:
 @pytest.mark.parametrize("service", ["slam", "mapper", "planner", "smoother", "viz"])
 def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(service: str) -> None:
     with stack() as (bus, client, lines):
-        status, first = _status_of(bus, service)
+        status, _ = _status_of(bus, service)
         maps: list[Any] = []
         bus.subscribe("map", callback=maps.append, immediate=True)
         runner, outcome = _run_goal_in_background(client, GOAL)
         _wait_driving(client, 3.0)
+        first = status.latest()  # the process running now
         os.kill(first.pid, signal.SIGKILL)
         killed_at = client.now()
         restarted = status.wait(120.0, lambda s: s.pid != first.pid)
@@ -108,9 +109,10 @@ def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(servi
 @pytest.mark.parametrize("service", ["slam", "mapper", "planner", "smoother", "controller", "viz"])
 def test_a_hung_service_is_killed_restarted_and_the_mission_completes(service: str) -> None:
     with stack("--hung-timeout", "2") as (bus, client, lines):
-        status, first = _status_of(bus, service)
+        status, _ = _status_of(bus, service)
         runner, outcome = _run_goal_in_background(client, GOAL)
         _wait_driving(client, 1.5)
+        first = status.latest()  # the process running now (a loaded machine may have had it replaced already)
         os.kill(first.pid, signal.SIGSTOP)  # hung: holds its token and sockets, answers nothing
         try:
             restarted = status.wait(120.0, lambda s: s.pid != first.pid)
@@ -130,12 +132,13 @@ def test_a_crashed_or_hung_sim_restarts_the_world_and_the_goal_still_ends(fault:
     """The sim restarts from t = 0 with the robot at its start: the services re-activate on the new timeline and
     keep the goal and SLAM's map; the goal ends reached or with a typed code, never hangs."""
     with stack("--hung-timeout", "2") as (bus, client, lines):
-        status, first = _status_of(bus, "sim")
+        status, _ = _status_of(bus, "sim")
         maps: list[Any] = []
         bus.subscribe("map", callback=maps.append, immediate=True)
         runner, outcome = _run_goal_in_background(client, GOAL)
         _wait_driving(client, 2.0)
         known_before = _known_cells(maps[-1])
+        first = status.latest()  # the process running now
         os.kill(first.pid, fault)
         try:
             restarted = status.wait(120.0, lambda s: s.pid != first.pid)
