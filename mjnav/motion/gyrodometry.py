@@ -24,8 +24,8 @@ class GyroOdometry:
         bias_gain: weight of each standstill interval's mean rate in the bias estimate (0 = no bias estimation).
         still_m: a wheel increment shorter than this (metres) ...
         still_rad: ... and turning less than this (radians) counts as standstill.
-        max_gyro_gap_s: when the gyro samples cover less than the odometry interval minus this (seconds), the
-            wheels' own heading increment is used for that interval (no gyro, no guess).
+        min_gyro_coverage: the share of an odometry interval the gyro samples must cover for their mean rate to
+            give the interval's turn; below it the wheels' own heading increment is used (no gyro, no guess).
 
     Feed samples in time order per source (:meth:`add_gyro`, :meth:`add_odom`); gyro samples up to an odometry
     stamp must be added before that odometry pose.
@@ -36,16 +36,18 @@ class GyroOdometry:
         bias_gain: float = 0.02,
         still_m: float = 1e-5,
         still_rad: float = 1e-5,
-        max_gyro_gap_s: float = 0.015,
+        min_gyro_coverage: float = 0.5,
     ) -> None:
         if not 0.0 <= bias_gain <= 1.0:
             raise ValueError(f"bias_gain must be in [0, 1], got {bias_gain}")
-        if not (still_m >= 0.0 and still_rad >= 0.0 and max_gyro_gap_s >= 0.0):
-            raise ValueError("still_m, still_rad and max_gyro_gap_s must be >= 0")
+        if not 0.0 < min_gyro_coverage <= 1.0:
+            raise ValueError(f"min_gyro_coverage must be in (0, 1], got {min_gyro_coverage}")
+        if not (still_m >= 0.0 and still_rad >= 0.0):
+            raise ValueError("still_m and still_rad must be >= 0")
         self.bias_gain = bias_gain
         self.still_m = still_m
         self.still_rad = still_rad
-        self.max_gyro_gap_s = max_gyro_gap_s
+        self.min_gyro_coverage = min_gyro_coverage
         self.bias_radps = 0.0
         self._gyro: deque[tuple[float, float]] = deque(maxlen=10_000)  # (t, rate) not yet used
         self._last_gyro_t: float | None = None
@@ -84,12 +86,14 @@ class GyroOdometry:
         t0, prev = self._wheel
         step = prev.inverse() * wheel_pose  # the wheels' increment in the previous wheel frame
         distance = math.copysign(math.hypot(step.x, step.y), step.x)
-        turn, covered, mean_rate = self._gyro_turn(t0, t_s)
-        if covered < (t_s - t0) - self.max_gyro_gap_s:
-            turn = step.theta  # the gyro missed (part of) the interval: keep the wheels' heading
-        elif abs(distance) < self.still_m and abs(step.theta) < self.still_rad and covered > 0.0:
+        covered, mean_rate = self._gyro_rate(t0, t_s)
+        if covered < self.min_gyro_coverage * (t_s - t0):
+            turn = step.theta  # the gyro missed (most of) the interval: keep the wheels' heading
+        elif abs(distance) < self.still_m and abs(step.theta) < self.still_rad:
             self.bias_radps += self.bias_gain * (mean_rate - self.bias_radps)
             turn = 0.0  # standing still: no heading change, whatever the gyro's noise says
+        else:
+            turn = (mean_rate - self.bias_radps) * (t_s - t0)  # a missing sample is bridged by the others' mean
         heading = self._fused.theta + 0.5 * turn
         self._fused = Pose2D(
             self._fused.x + distance * math.cos(heading),
@@ -99,20 +103,19 @@ class GyroOdometry:
         self._wheel = (t_s, wheel_pose)
         return self._fused
 
-    def _gyro_turn(self, t0: float, t1: float) -> tuple[float, float, float]:
-        """(bias-corrected turn over (t0, t1] in rad, seconds covered by gyro samples, their mean raw rate)."""
-        turn = covered = raw = 0.0
+    def _gyro_rate(self, t0: float, t1: float) -> tuple[float, float]:
+        """(seconds of (t0, t1] covered by gyro samples, their time-weighted mean raw rate in rad/s)."""
+        covered = raw = 0.0
         prev_t = t0
         while self._gyro and self._gyro[0][0] <= t1 + 1e-9:
             t, rate = self._gyro.popleft()
             if t <= t0 + 1e-9:
                 continue
             dt = t - max(prev_t, t0)
-            turn += (rate - self.bias_radps) * dt
             raw += rate * dt
             covered += dt
             prev_t = t
-        return turn, covered, (raw / covered if covered > 0.0 else 0.0)
+        return covered, (raw / covered if covered > 0.0 else 0.0)
 
     def _drop_gyro_until(self, t_s: float) -> None:
         while self._gyro and self._gyro[0][0] <= t_s + 1e-9:

@@ -62,5 +62,7 @@ def test_without_gyro_samples_the_wheels_heading_is_kept() -> None:
     odo.add_gyro(0.03, 0.0)
     odo.add_gyro(0.04, 0.0)
     assert odo.add_odom(0.04, Pose2D(0.02, 0.0, 0.04)).theta == pytest.approx(0.02)  # the gyro says: no turn
+    odo.add_gyro(0.05, 1.0)  # the sample of 0.06 has not come: the one there is stands for the whole interval
+    assert odo.add_odom(0.06, Pose2D(0.03, 0.0, 0.05)).theta == pytest.approx(0.02 + 1.0 * 0.02)
     odo.reset()
     assert odo.pose is None and odo.add_odom(1.0, Pose2D(5.0, 5.0, 1.0)) == Pose2D(5.0, 5.0, 1.0)
