@@ -63,7 +63,8 @@ def test_pub_on_an_event_key_confirms_delivery_or_fails_loudly(peer: Callable[..
     lost = _mjnav("pub", "robot0/goal", "--yaml", goal, "--timeout", "2", "--connect", router_endpoint)
     assert lost.returncode == 1 and "NOT DELIVERED" in lost.stderr and "planner 0/1" in lost.stderr
     Harness(PlannerService, peer, ())
-    done = _mjnav("pub", "/robot0/goal", "--yaml", goal, "--count", "30", "--rate", "200", "--connect", router_endpoint)
+    burst = ["--count", "30", "--rate", "200", "--timeout", "60"]  # --timeout: a guard for a loaded machine
+    done = _mjnav("pub", "/robot0/goal", "--yaml", goal, *burst, "--connect", router_endpoint)
     assert done.returncode == 0, done.stderr
     assert "received by planner (30)" in done.stderr
 
