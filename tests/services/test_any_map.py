@@ -7,9 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -18,26 +15,18 @@ import pytest
 
 from mjnav.sim.truth import FootprintClearance, shortest_length_m
 from mjnav.sim.worlds import world_info
-from tests.conftest import REPO, free_port
+from tests.conftest import free_port
+from tests.services.test_navigation import _mjnav
 
 DATA = Path(__file__).parent / "data"
 
 
 def _demo(out: Path, world: Path, seed: int) -> dict[str, Any]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}
     args = ["demo", "--world", str(world), "--seed", str(seed), "--rtf", "4", "--json", "--headless", "--out", str(out)]
-    args += ["--timeout", "120", "--port", str(free_port())]
-    proc = subprocess.run(
-        [sys.executable, "-m", "mjnav", *args],
-        cwd=REPO,
-        env=env,
-        text=True,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        timeout=900,
-    )
-    assert proc.returncode == 0, proc.stdout[-3000:]
-    summary: dict[str, Any] = json.loads(proc.stdout.strip().splitlines()[-1])
+    proc = _mjnav(*args, "--timeout", "120", "--port", str(free_port()))
+    stdout, _ = proc.communicate(timeout=900)
+    assert proc.returncode == 0, stdout[-3000:]
+    summary: dict[str, Any] = json.loads(stdout.strip().splitlines()[-1])
     assert json.loads((out / "summary.json").read_text()) == summary
     return summary
 
