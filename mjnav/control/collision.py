@@ -23,6 +23,7 @@ furthest away (Nav2's collision monitor stops or slows; this also lets the robot
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -180,6 +181,293 @@ def free_space_violations(
     seen = np.where(inside, r[np.clip(idx, 0, max(len(r) - 1, 0))], -np.inf) if len(r) else np.full(len(p), -np.inf)
     seen = np.where(np.isfinite(seen) | ~inside, seen, np.inf)
     return np.asarray(seen > rho + tolerance_m)
+
+
+@dataclass(frozen=True, slots=True)
+class TrackedScan:
+    """A scan's valid returns in a fixed frame, with each return's velocity (see :func:`track_scan`).
+
+    Attributes:
+        stamp_s: the scan's time, seconds.
+        pose: (x, y, θ) of the sensor in the fixed frame.
+        angle_min_rad, angle_increment_rad: the scan's beam angles.
+        ranges_m: (N,) its ranges, metres.
+        beams: (M,) index of the beam each return came from.
+        points: (M, 2) the returns in the fixed frame, metres.
+        velocities: (M, 2) their velocities in the fixed frame, m/s (zero: static).
+        unseen_s: (M,) for a moving return, how long its motion has gone without being seen (carried over from
+            earlier scans), seconds.
+    """
+
+    stamp_s: float
+    pose: tuple[float, float, float]
+    angle_min_rad: float
+    angle_increment_rad: float
+    ranges_m: FloatArray
+    beams: NDArray[np.int64]
+    points: FloatArray
+    velocities: FloatArray
+    unseen_s: FloatArray
+
+    def moving(self) -> NDArray[np.bool_]:
+        """(M,) True for the returns of a moving obstacle."""
+        return np.asarray(np.any(self.velocities != 0.0, axis=1))
+
+
+@dataclass(frozen=True, slots=True)
+class TrackingParams:
+    """Settings of :func:`track_scan`.
+
+    Attributes:
+        moving_speed_mps: slower returns and objects count as static, m/s.
+        max_gap_s: the longest time between two scans compared, seconds.
+        track_tolerance_m: a return this close to where a moving return of the previous scan has moved to
+            continues it, metres.
+        max_unseen_s: an object whose motion has not been seen for this long stops, seconds (a cart that parks
+            where only its side is in view must not move for ever).
+        object_gap_m: consecutive returns this close (or within three beam spacings at their range) belong to one
+            object, metres.
+        max_object_m: objects wider than this (walls) do not move as a whole, metres.
+        min_moving_share: an object moves when this share of its returns (and at least 3) move or continue a
+            moving return.
+        min_constraint_share: a direction of motion counts as seen when the returns' surface normals constrain it
+            with at least this share of their weight (the rest of the velocity is carried over).
+    """
+
+    moving_speed_mps: float = 0.25
+    max_gap_s: float = 0.5
+    track_tolerance_m: float = 0.1
+    max_unseen_s: float = 2.0
+    object_gap_m: float = 0.2
+    max_object_m: float = 2.0
+    min_moving_share: float = 0.2
+    min_constraint_share: float = 0.3
+
+    def __post_init__(self) -> None:
+        check_params(
+            self,
+            positive=("moving_speed_mps", "max_gap_s", "track_tolerance_m", "max_unseen_s", "object_gap_m"),
+            non_negative=("max_object_m", "min_moving_share", "min_constraint_share"),
+        )
+
+
+def track_scan(
+    stamp_s: float,
+    sensor_pose: tuple[float, float, float],
+    angle_min_rad: float,
+    angle_increment_rad: float,
+    ranges_m: ArrayLike,
+    range_min_m: float,
+    range_max_m: float,
+    previous: TrackedScan | None,
+    params: TrackingParams,
+    static: Callable[[FloatArray], NDArray[np.bool_]] | None = None,
+) -> TrackedScan:
+    """A new scan's returns in the fixed frame and their velocities against the previous scan.
+
+    1. A return may move only where it lies in the previous scan's free space (:func:`free_space_violations`),
+       on a surface facing the sensor (:func:`facing_returns`) and, with ``static``, not where that says it is
+       static (e.g. on a mapped wall); its velocity is then :func:`point_velocities`'.
+    2. Two scans see only the motion along a surface's normal (the aperture problem): a cart crossing the
+       robot's view shows its leading face moving, while its side slides along itself and its back face recedes
+       into space the previous scan did not see. So a return close to where a moving return of the previous scan
+       has moved to continues it, and the returns are grouped into objects (:func:`_move_objects`): a small
+       object moves as a whole, at the velocity its returns' normal flow and the carried motion give.
+    3. An object whose motion has gone unseen for ``max_unseen_s`` stops.
+
+    Without a previous scan, or one older than ``max_gap_s`` (or not older at all), every return is static.
+
+    Args:
+        stamp_s: the scan's time, seconds.
+        sensor_pose: (x, y, θ) of the sensor in the fixed frame at that time.
+        angle_min_rad, angle_increment_rad, ranges_m, range_min_m, range_max_m: the scan.
+        previous: the previous scan as this function returned it, or None.
+        params: the tracking's settings.
+        static: (M, 2) fixed-frame points → (M,) True where a point is known to be static.
+    """
+    r = np.asarray(ranges_m, dtype=np.float64)
+    angles = angle_min_rad + angle_increment_rad * np.arange(len(r))
+    ok = np.isfinite(r) & (r >= range_min_m) & (r < range_max_m)
+    beams = np.flatnonzero(ok)
+    local = np.column_stack((r[ok] * np.cos(angles[ok]), r[ok] * np.sin(angles[ok])))
+    x, y, th = sensor_pose
+    c, s = math.cos(th), math.sin(th)
+    points = local @ np.array([[c, s], [-s, c]]) + np.array([x, y])
+    velocities = np.zeros_like(points)
+    unseen = np.zeros(len(points))
+    dt = stamp_s - previous.stamp_s if previous is not None else 0.0
+    if previous is not None and 0.0 < dt <= params.max_gap_s and len(points):
+        can_move = free_space_violations(
+            points, previous.pose, previous.angle_min_rad, previous.angle_increment_rad, previous.ranges_m
+        )
+        can_move &= facing_returns(local)
+        fixed = static(points) if static is not None else np.zeros(len(points), dtype=bool)
+        can_move &= ~fixed
+        velocities = point_velocities(points, previous.points, dt, params.moving_speed_mps, can_move=can_move)
+        objects = _objects(points, r[ok], angle_increment_rad, beams, len(r), params)
+        carried = _Carried(np.zeros_like(velocities), np.zeros(len(points)), np.zeros((0, 2)), np.zeros(0, int), dt)
+        was_moving = previous.moving()
+        if was_moving.any():
+            predicted = previous.points[was_moving] + dt * previous.velocities[was_moving]
+            distance, nearest = cKDTree(predicted).query(points)
+            near = (distance <= params.track_tolerance_m) & ~fixed
+            carried.velocities[near] = previous.velocities[was_moving][nearest[near]]
+            carried.unseen_s[near] = previous.unseen_s[was_moving][nearest[near]] + dt
+            # And the other way round: the previous moving returns whose motion lands on a return of this scan,
+            # with that return's object.
+            distance, nearest = cKDTree(points).query(predicted)
+            landed = distance <= params.track_tolerance_m
+            carried = _Carried(
+                carried.velocities, carried.unseen_s, previous.points[was_moving][landed], objects[nearest[landed]], dt
+            )
+        flow = _normal_flow(points, previous.points, dt)
+        unseen = _move_objects(objects, velocities, carried, flow, fixed, points, params)
+    return TrackedScan(
+        stamp_s, (x, y, th), float(angle_min_rad), float(angle_increment_rad), r, beams, points, velocities, unseen
+    )
+
+
+def _objects(
+    points: FloatArray,
+    ranges: FloatArray,
+    angle_increment: float,
+    beams: NDArray[np.int64],
+    n_beams: int,
+    params: TrackingParams,
+) -> NDArray[np.int64]:
+    """(M,) object label of each return: consecutive returns of neighbouring beams closer than ``object_gap_m``
+    or three beam spacings at their range (a full circle's last object continues into its first)."""
+    spacing = 3.0 * abs(angle_increment) * ranges
+    step = np.hypot(*np.diff(points, axis=0).T)
+    adjacent = (step <= np.maximum(params.object_gap_m, np.maximum(spacing[:-1], spacing[1:]))) & (np.diff(beams) == 1)
+    label = np.concatenate(([0], np.cumsum(~adjacent)))
+    full_circle = abs(n_beams * angle_increment - 2.0 * math.pi) < abs(angle_increment)
+    if (
+        full_circle
+        and label[-1] > 0
+        and beams[0] == 0
+        and beams[-1] == n_beams - 1
+        and math.hypot(*(points[0] - points[-1])) <= max(params.object_gap_m, spacing[0], spacing[-1])
+    ):
+        label[label == label[-1]] = 0
+    return np.asarray(label, dtype=np.int64)
+
+
+def _normal_flow(points: FloatArray, previous: FloatArray, dt_s: float) -> FloatArray:
+    """(M, 3) rows (n_x, n_y, d) per point: the previous scan's surface normal at the nearest previous point and
+    the point's displacement along it per second (n·v = d is all two scans tell of its velocity); zero rows
+    where the previous surface there is not a surface (no close neighbours)."""
+    out = np.zeros((len(points), 3))
+    if len(previous) < 2 or len(points) == 0:
+        return out
+    distance, j = cKDTree(previous).query(points)
+    tangent = previous[np.minimum(j + 1, len(previous) - 1)] - previous[np.maximum(j - 1, 0)]
+    length = np.hypot(tangent[:, 0], tangent[:, 1])
+    ok = (length > 1e-6) & (length < 0.5) & (distance < 0.3)
+    normal = np.column_stack((-tangent[ok, 1], tangent[ok, 0])) / length[ok, None]
+    out[ok, :2] = normal
+    out[ok, 2] = np.sum((points[ok] - previous[j[ok]]) * normal, axis=1) / dt_s
+    return out
+
+
+def _object_velocity(
+    flow: FloatArray, prior: FloatArray, min_share: float
+) -> tuple[FloatArray, float, FloatArray | None]:
+    """An object's velocity from its returns' normal flow rows (n_x, n_y, d), and the speed seen.
+
+    Least squares of n·v = d in the directions the normals constrain (an eigenvalue of Σ n nᵀ of at least
+    ``min_share`` of the rows: the side of a cart sliding along itself says its normal component is 0), and
+    ``prior`` (the velocity the object had, or zero) in the direction they leave open (a single face's
+    tangential motion, which noisy normals would otherwise pull towards zero). Also returns the speed seen (of
+    the constrained part alone) and the open direction (a unit vector; None when the normals constrain both).
+    """
+    n, d = flow[:, :2], flow[:, 2]
+    values, vectors = np.linalg.eigh(n.T @ n)
+    rhs = vectors.T @ (n.T @ d)
+    strong = values >= max(min_share * len(flow), 1e-9)
+    seen = np.where(strong, rhs / np.where(strong, values, 1.0), 0.0)
+    coords = np.where(strong, seen, vectors.T @ prior)
+    open_direction = None if strong.all() else np.asarray(vectors[:, 0])  # eigh sorts ascending: weakest first
+    return np.asarray(vectors @ coords), float(np.hypot(*seen)), open_direction
+
+
+@dataclass(frozen=True, slots=True)
+class _Carried:
+    """What a scan carries over from the previous scan's moving returns: per return ((M, …), zero where none)
+    the velocity and the time its motion has gone unseen (plus ``dt_s``); and the previous moving returns that
+    land on one of this scan's returns, (P, 2), with that return's object label, (P,)."""
+
+    velocities: FloatArray
+    unseen_s: FloatArray
+    origins: FloatArray
+    origin_objects: NDArray[np.int64]
+    dt_s: float
+
+
+def _slid_along(points: FloatArray, origins: FloatArray, direction: FloatArray, expected_m: float) -> bool | None:
+    """Whether a face seen moving along itself still does: True when one of its visible ends (``points`` now,
+    ``origins`` in the previous scan) moved at least half the ``expected_m`` shift along ``direction``, False
+    when neither moved a quarter of it (it stopped), None in between or without origins."""
+    if len(origins) == 0:
+        return None
+    now, before = points @ direction, origins @ direction
+    shifts = np.array([now.min() - before.min(), now.max() - before.max()]) * math.copysign(1.0, expected_m)
+    if shifts.max() >= 0.5 * abs(expected_m):
+        return True
+    if shifts.max() < 0.25 * abs(expected_m):
+        return False
+    return None
+
+
+def _move_objects(
+    label: NDArray[np.int64],
+    velocities: FloatArray,
+    carried: _Carried,
+    flow: FloatArray,
+    fixed: NDArray[np.bool_],
+    points: FloatArray,
+    params: TrackingParams,
+) -> FloatArray:
+    """Objects no wider than ``max_object_m`` move as a whole when at least 3 and ``min_moving_share`` of their
+    returns move (``velocities``) or continue a previous moving return, or when all of an object's one or two
+    returns continue one (a face seen edge-on breaks into such fragments), else not at all; at the velocity
+    :func:`_object_velocity` fits, while it is at least ``moving_speed_mps``. Motion the normals leave open (a
+    side sliding along itself) is carried over while the face's ends still slide (:func:`_slid_along`), and for
+    at most ``max_unseen_s`` when they cannot tell. Larger objects (walls) keep their returns' own velocities: a
+    wall sliding along itself fits any carried velocity. Updates ``velocities`` in place; returns the (M,)
+    unseen times."""
+    unseen = np.zeros(len(points))
+    own = np.any(velocities != 0.0, axis=1)
+    continues = np.any(carried.velocities != 0.0, axis=1)
+    for k in np.unique(label):
+        members = label == k
+        extent = points[members].max(axis=0) - points[members].min(axis=0)
+        if math.hypot(*extent) > params.max_object_m:
+            continue
+        size = int(members.sum())
+        count = int((own | continues)[members].sum())
+        fragment = size < 3 and bool(continues[members].all())
+        velocities[members] = 0.0
+        if not ((count >= 3 and count >= params.min_moving_share * size) or fragment):
+            continue
+        linked = members & continues
+        prior = np.median(carried.velocities[linked], axis=0) if linked.any() else np.zeros(2)
+        velocity, seen_speed, open_direction = _object_velocity(flow[members], prior, params.min_constraint_share)
+        age = 0.0
+        if int(own[members].sum()) < 3 and seen_speed < params.moving_speed_mps and linked.any():
+            slid = None
+            if open_direction is not None:
+                expected = float(prior @ open_direction) * carried.dt_s
+                origins = carried.origins[carried.origin_objects == k]
+                slid = _slid_along(points[members], origins, open_direction, expected)
+            if slid is False:
+                continue
+            age = 0.0 if slid else float(np.max(carried.unseen_s[linked]))
+        if age > params.max_unseen_s or math.hypot(*velocity) < params.moving_speed_mps:
+            continue
+        velocities[members & ~fixed] = velocity
+        unseen[members & ~fixed] = age
+    return unseen
 
 
 def _arc(v_mps: float, omega_radps: float, t: FloatArray) -> FloatArray:

@@ -270,6 +270,7 @@ def _scan_kernel(
     theta: float,
     angles: NDArray[np.float64],
     ranges: NDArray[np.float64],
+    marks: NDArray[np.bool_],
     inv_res: float,
     max_range: float,
     min_range: float,
@@ -284,8 +285,9 @@ def _scan_kernel(
     """Update ``log_odds`` in place with one scan. Positions, ``max_range`` and ``min_range`` are in cell
     units (1 cell = res metres); ``ranges`` are metres and are multiplied by ``inv_res``.
 
-    ``stamp`` dedups per scan (1 <= base <= 252): values < base are untouched this scan, base + 1 marks a
-    pending hit, base + 2 a cell already updated. Each cell gets at most one update per scan; a hit beats a
+    ``stamp`` dedups per scan (1 <= base <= 252): values < base are untouched this scan, base itself the end
+    cell of a beam with ``marks[k]`` False (no miss, no hit unless another beam ends there), base + 1 a pending
+    hit, base + 2 a cell already updated. Each cell gets at most one update per scan; a hit beats a
     pass-through. ``trig_*`` cache cos/sin of the beam angles between calls (recomputed where the angle
     changed).
     """
@@ -336,9 +338,12 @@ def _scan_kernel(
             r1 = math.floor(ey)
             c1 = math.floor(ex)
         elif is_hit and 0 <= r1 < H and 0 <= c1 < W:
-            hit[k] = True
-            if sf[r1 * W + c1] < b:
-                sf[r1 * W + c1] = pending
+            if marks[k]:
+                hit[k] = True
+                if sf[r1 * W + c1] <= b:
+                    sf[r1 * W + c1] = pending
+            elif sf[r1 * W + c1] < b:
+                sf[r1 * W + c1] = b
         # Clipped points lie on the closed rectangle; clamp the cells on its far edges (x = W, y = H) inward.
         seg[k, 0] = min(max(math.floor(by), 0), H - 1)
         seg[k, 1] = min(max(math.floor(bx), 0), W - 1)
@@ -699,6 +704,7 @@ class OccupancyGrid:
         max_range_m: float,
         *,
         min_range_m: float = 0.0,
+        marks: ArrayLike | None = None,
     ) -> None:
         """Fuse one planar range scan into the grid (in place).
 
@@ -731,10 +737,14 @@ class OccupancyGrid:
             ranges_m: (N,) measured ranges, metres (same length as ``angles_rad``).
             max_range_m: sensor maximum range, metres (finite, > 0).
             min_range_m: sensor minimum range, metres (>= 0); shorter readings are skipped.
+            marks: (N,) bool, default all True. A beam with False is clearing-only (Nav2's obstacle layer has
+                marking and clearing sources; a moving obstacle's return is the case here): it frees the cells
+                before its end cell and leaves the end cell as it is (unless another beam ends there).
 
         Raises:
             InvalidPoseError: the pose has NaN/inf or not 3 components.
-            InvalidGridError: angles/ranges are not 1-D real arrays of equal length.
+            InvalidGridError: angles/ranges are not 1-D real arrays of equal length, or marks is not a bool array
+                of their length.
             InvalidParameterError: max_range_m not finite/positive or over 1e12 cells, or min_range_m
                 negative/non-finite.
 
@@ -748,6 +758,14 @@ class OccupancyGrid:
             raise InvalidGridError(
                 f"angles_rad and ranges_m must have the same length, got {angles.shape[0]} and {ranges.shape[0]}"
             )
+        if marks is None:
+            mark = np.ones(angles.shape[0], dtype=np.bool_)
+        else:
+            mark = np.asarray(marks)
+            if mark.dtype != np.bool_ or mark.shape != angles.shape:
+                raise InvalidGridError(
+                    f"marks must be a bool array of shape {angles.shape}, got {mark.dtype} {mark.shape}"
+                )
         max_r = _finite(max_range_m, "max_range_m")
         if max_r <= 0.0:
             raise InvalidParameterError(f"max_range_m must be > 0, got {max_r}")
@@ -779,6 +797,7 @@ class OccupancyGrid:
             theta,
             angles,
             ranges,
+            mark,
             inv_res,
             max_r * inv_res,
             min_r * inv_res,

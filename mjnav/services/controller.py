@@ -27,14 +27,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter
 
 from mjnav.control import PathError, PurePursuit, PurePursuitParams, nearest_obstacle_ahead
-from mjnav.control.collision import (
-    CollisionCheckParams,
-    facing_returns,
-    free_space_violations,
-    point_velocities,
-    safe_command,
-    scan_points,
-)
+from mjnav.control.collision import CollisionCheckParams, TrackedScan, TrackingParams, safe_command, track_scan
 from mjnav.geometry import Pose2D, wrap_angle
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
@@ -161,20 +154,6 @@ class ControllerConfig:
         )
 
 
-@dataclass(frozen=True)
-class _ScanObstacles:
-    """A scan as the collision check uses it: stamp, sensor pose (map), beams, and its valid returns in the map
-    frame with their velocities."""
-
-    stamp: float
-    pose: tuple[float, float, float]
-    angle_min: float
-    angle_increment: float
-    ranges: Any
-    points: Any
-    velocities: Any
-
-
 def goal_yaw_error(goal_pose: Any, yaw_rad: float) -> float | None:
     """Heading error (goal yaw − ``yaw_rad``, wrapped to [−π, π)) of a geometry_msgs/Pose goal, or None when the
     goal has no orientation (an all-zero quaternion: any final heading will do)."""
@@ -192,6 +171,7 @@ class ControllerService(Service[ControllerConfig]):
     def configure(self) -> None:
         self.pursuit = PurePursuit(self.config.pursuit_params())
         self.collision = self.config.collision_params()
+        self.tracking = TrackingParams(moving_speed_mps=self.config.moving_speed_mps)
         self.path_sub = self.bus.subscribe("path")
         self.pose_in = PoseInput(self.bus, self.config.pose_source)
         self.scan_sub = self.bus.subscribe("scan")
@@ -219,7 +199,7 @@ class ControllerService(Service[ControllerConfig]):
         self.speed = 0.0
         self.pursuit.reset()
         self.pose_in.reset()
-        self.obstacles: _ScanObstacles | None = None  # the newest scan, fused
+        self.obstacles: TrackedScan | None = None  # the newest scan, fused
         self.walls: tuple[GridFrame, Any] | None = None  # the map's occupied cells, grown by one cell
 
     def _update_obstacles(self) -> None:
@@ -231,22 +211,18 @@ class ControllerService(Service[ControllerConfig]):
         pose = self.pose_in.at(stamp)
         if pose is None:
             return
-        ranges = np.asarray(scan.ranges, dtype=np.float64)
-        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
-        local = scan_points(angles, ranges, scan.range_min, scan.range_max)
-        points = pose.transform_points(local)
-        velocities = np.zeros_like(points)
-        prev = self.obstacles
-        if prev is not None and 0 < stamp - prev.stamp <= 0.5:
-            can_move = free_space_violations(points, prev.pose, prev.angle_min, prev.angle_increment, prev.ranges)
-            can_move &= facing_returns(local) & ~self._on_walls(points)
-            velocities = point_velocities(
-                points, prev.points, stamp - prev.stamp, self.collision.moving_speed_mps, can_move=can_move
-            )
-        self.obstacles = _ScanObstacles(
-            stamp, (pose.x, pose.y, pose.theta), float(scan.angle_min), float(scan.angle_increment), ranges, points,
-            velocities,
-        )  # fmt: skip
+        self.obstacles = track_scan(
+            stamp,
+            (pose.x, pose.y, pose.theta),
+            float(scan.angle_min),
+            float(scan.angle_increment),
+            scan.ranges,
+            float(scan.range_min),
+            float(scan.range_max),
+            self.obstacles,
+            self.tracking,
+            static=self._on_walls,
+        )
 
     def _on_walls(self, points: Any) -> Any:
         """(M,) True for points on (or next to) a cell the map has as occupied: static, whatever two scans say."""
@@ -261,7 +237,7 @@ class ControllerService(Service[ControllerConfig]):
 
     def _checked(self, now: float, pose: Pose2D, v: float, w: float) -> tuple[float, float]:
         """(v, ω) after the collision check against the newest scan ((0, 0) without a recent one)."""
-        if self.obstacles is None or now - self.obstacles.stamp > self.config.scan_timeout_s:
+        if self.obstacles is None or now - self.obstacles.stamp_s > self.config.scan_timeout_s:
             return 0.0, 0.0  # no recent scan: nothing to check the command against
         points, velocities = self.obstacles.points, self.obstacles.velocities
         local = pose.inverse().transform_points(points)

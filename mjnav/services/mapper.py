@@ -7,7 +7,9 @@ and inflated into ``costmap`` (0–100, −1 unknown) at ``publish_rate_hz`` of 
 map holds only its keyframes), which keeps thin walls solid in the costmap. The grid is published on ``map`` only
 when the mapper is the map's source (``pose_source`` ``ground_truth`` or ``odom``; on SLAM's pose, SLAM owns
 ``map``); it is checkpointed in the run's state directory, saved as PGM + YAML on request (endpoint ``save_map``)
-and on exit (``save_path``); ``prior_map`` starts from a saved map.
+and on exit (``save_path``); ``prior_map`` starts from a saved map. Returns of a moving obstacle (their motion
+between two scans, as the controller's collision check tracks it) clear the cells before them and mark nothing:
+the costmap holds what stays, and the controller waits for what passes.
 
 With ``map_source = "slam"`` the static layer is SLAM's ``map`` (resampled onto the mapper's fixed grid) and an
 obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` at SLAM's pose; ``save_map`` then
@@ -24,6 +26,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from mjnav.control.collision import TrackedScan, TrackingParams, track_scan
 from mjnav.geometry import Pose2D
 from mjnav.mapping import OccupancyGrid, inflation_costmap, read_ros_map, write_ros_map
 from mjnav.mapping.frame import GridFrame
@@ -43,6 +46,10 @@ class MapperConfig:
         pose_source: ``slam`` (SLAM's ``map → odom`` ∘ odometry, :mod:`mjnav.runtime.pose`), ``ground_truth``
             (true pose) or ``odom`` (drifting).
         obstacle_range_m: the obstacle layer marks the newest scan's returns up to this range (slam mode).
+        moving_speed_mps: returns moving faster than this between two scans are a moving obstacle's
+            (:func:`mjnav.control.collision.track_scan`, as the controller's collision check sees them): they clear
+            the cells before them and mark nothing. The planner then plans through a cart crossing its way, which
+            the controller waits for, rather than around each place the cart was.
         width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)); ``mjnav
             up`` sizes it to the sim's world (:meth:`mjnav.runtime.launcher.Launcher._settings_from_world`).
         laser_offset_m: lidar position in base_link (x, y), metres (``mjnav up``: the robot model's lidar site).
@@ -65,6 +72,7 @@ class MapperConfig:
     map_source: Literal["slam", "scan"] = "scan"
     pose_source: Literal["slam", "ground_truth", "odom"] = "slam"
     obstacle_range_m: float = 3.0
+    moving_speed_mps: float = 0.25
     width_m: float = 20.0
     height_m: float = 20.0
     resolution_m: float = 0.05
@@ -80,7 +88,7 @@ class MapperConfig:
     checkpoint_period_s: float = 2.0
 
     def __post_init__(self) -> None:
-        for name in ("publish_rate_hz", "width_m", "height_m", "resolution_m", "max_range_m"):
+        for name in ("publish_rate_hz", "width_m", "height_m", "resolution_m", "max_range_m", "moving_speed_mps"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if not 0 <= self.robot_radius_m <= self.inflation_radius_m:
@@ -124,7 +132,8 @@ class MapperService(Service[MapperConfig]):
         # On SLAM's pose, SLAM owns the ``map`` topic; the mapper's own grid is then only the costmap's layer.
         self.map_pub = None if self.slam_mode or cfg.pose_source == "slam" else self.bus.publisher("map")
         self.costmap_pub = self.bus.publisher("costmap")
-        self.obstacles: Any = np.zeros((0, 2))  # the obstacle layer: newest scan's returns in map, (M, 2)
+        self.obstacles: Any = np.zeros((0, 2))  # the obstacle layer: newest scan's static returns in map, (M, 2)
+        self.tracked: TrackedScan | None = None  # the previous scan, for its returns' motion
         self._centres: Any = None  # (H·W, 2) map-frame cell centres of the grid (slam mode, computed once)
         self.bus.serve("save_map", self._on_save)
         self.laser = Pose2D(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0)
@@ -202,22 +211,45 @@ class MapperService(Service[MapperConfig]):
                     "no %s pose at scan time %.3f s: %d scan(s) skipped", self.config.pose_source, stamp, self.skipped
                 )
             return
-        n = len(scan.ranges)
-        angles = scan.angle_min + scan.angle_increment * np.arange(n)
+        sensor = pose * self.laser
         ranges = np.asarray(scan.ranges, dtype=np.float64)
-        if self.slam_mode:
-            ok = (
-                np.isfinite(ranges)
-                & (ranges >= scan.range_min)
-                & (ranges < min(scan.range_max, self.config.obstacle_range_m))
-            )
-            local = np.column_stack((ranges[ok] * np.cos(angles[ok]), ranges[ok] * np.sin(angles[ok])))
-            self.obstacles = (pose * self.laser).transform_points(local)
-            self.scans += 1
-            return
         max_range = min(float(scan.range_max), self.config.max_range_m)
-        self.grid.integrate_scan(pose * self.laser, angles, ranges, max_range, min_range_m=float(scan.range_min))
+        tracked = track_scan(
+            stamp,
+            (sensor.x, sensor.y, sensor.theta),
+            float(scan.angle_min),
+            float(scan.angle_increment),
+            ranges,
+            float(scan.range_min),
+            max_range,
+            self.tracked,
+            TrackingParams(moving_speed_mps=self.config.moving_speed_mps),
+            static=None if self.slam_mode else self._on_walls,
+        )
+        self.tracked = tracked
+        moving = tracked.moving()
         self.scans += 1
+        if self.slam_mode:
+            near = ~moving & (ranges[tracked.beams] < self.config.obstacle_range_m)
+            self.obstacles = tracked.points[near]
+            return
+        marks = np.ones(len(ranges), dtype=bool)
+        marks[tracked.beams[moving]] = False
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+        self.grid.integrate_scan(sensor, angles, ranges, max_range, min_range_m=float(scan.range_min), marks=marks)
+
+    def _on_walls(self, points: Any) -> Any:
+        """(M,) True for points on or next to a cell the grid has as occupied: static, whatever two scans say."""
+        log_odds, threshold = self.grid.log_odds, self.grid.model.occupied_threshold
+        cells = self.frame.world_to_cells(points)
+        h, w = log_odds.shape
+        out = np.zeros(len(points), dtype=bool)
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                r, c = cells[:, 0] + dr, cells[:, 1] + dc
+                inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+                out[inside] |= log_odds[r[inside], c[inside]] > threshold
+        return out
 
     def occupancy(self) -> Any:
         """(H, W) int8 occupancy the costmap inflates (0..100, −1 unknown): the own map's states (scan mode), or

@@ -207,6 +207,27 @@ def test_one_update_per_cell_per_scan_and_hit_beats_pass_through() -> None:
     assert g.log_odds[5, 8] == pytest.approx(L_HIT)
 
 
+def test_clearing_only_beams_free_their_way_and_leave_their_end_cell() -> None:
+    g = unit_grid()
+    g.log_odds[5, 5] = 2.5  # a cell marked before (a cart that has moved on, say)
+    # Beam 0 (clearing-only) ends in (5, 5); beam 1 (marking) passes through it to (5, 8); beam 2 (clearing-only)
+    # and beam 3 (marking) both end in (7, 4).
+    angles = [0.0, 0.0, math.atan2(2.0, 4.0), math.atan2(2.0, 4.0)]
+    ranges = [5.0, 8.0, math.hypot(4.0, 2.0), math.hypot(4.0, 2.0)]
+    marks = np.array([False, True, False, True])
+    g.integrate_scan((0.5, 5.5, 0.0), angles, ranges, 9.0, marks=marks)
+    assert g.log_odds[5, 3] == pytest.approx(L_MISS)  # cleared on the way
+    assert g.log_odds[5, 5] == pytest.approx(2.5)  # neither hit nor missed, though a marking beam crossed it
+    assert g.log_odds[5, 8] == pytest.approx(L_HIT)
+    assert g.log_odds[7, 4] == pytest.approx(L_HIT)  # a marking beam ends there too: the hit stands
+    # Alone, the clearing-only beam into (7, 4) leaves it unknown.
+    g = unit_grid()
+    g.integrate_scan((0.5, 5.5, 0.0), angles[2:3], ranges[2:3], 9.0, marks=np.array([False]))
+    assert g.log_odds[7, 4] == 0.0 and g.log_odds[6, 2] == pytest.approx(L_MISS)
+    with pytest.raises(InvalidGridError, match="marks"):
+        g.integrate_scan((0.5, 5.5, 0.0), [0.0], [3.0], 9.0, marks=np.array([1]))
+
+
 def test_many_beams_through_the_sensor_cell_update_it_once() -> None:
     g = unit_grid()
     angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)

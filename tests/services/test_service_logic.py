@@ -554,3 +554,42 @@ def test_costmap_from_slams_map_with_the_newest_scan_as_obstacle_layer(peer: Pee
     cost, _frame = ros.grid_frame(h.received["costmap"][-1])
     assert cost[20, 30] == 100 and cost[20, 20] == 100  # the map's wall; the scanned box (x = 2.0, y = 2.0)
     assert cost[20, 10] == 0  # the robot's own cell: free
+
+
+def test_a_cart_crossing_the_view_leaves_no_trail_in_the_costmap_and_a_parked_one_is_marked(peer: Peer) -> None:
+    """Scan mode: a cart drives across in front of the robot at 0.5 m/s, then parks. Its returns only clear while
+    it moves (the planner would otherwise route around every place it has been), and mark once it stands."""
+    from tests.estimation._scans import raycast
+
+    h = Harness(
+        MapperService, peer, ("map",), map_source="scan", pose_source="ground_truth", width_m=10.0, height_m=6.0,
+        origin_m=(0.0, 0.0), resolution_m=0.05, checkpoint_period_s=0.0,
+    )  # fmt: skip
+    room = np.array([(0, 0, 10, 0), (10, 0, 10, 6), (10, 6, 0, 6), (0, 6, 0, 0)], dtype=float)
+    robot = (1.0, 3.0, 0.0)
+
+    def cart(cy: float) -> np.ndarray:
+        x0, x1, y0, y1 = 4.0, 5.0, cy - 0.35, cy + 0.35
+        return np.array([(x0, y0, x1, y0), (x1, y0, x1, y1), (x1, y1, x0, y1), (x0, y1, x0, y0)])
+
+    def scan_at(t: float, cy: float) -> None:
+        angles, ranges = raycast(np.concatenate([room, cart(cy)]), robot, 360, 2 * math.pi, 12.0)
+        h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(*robot)))
+        h.send("scan", ros.laser_scan(
+            t, "laser", angle_min_rad=float(angles[0]), angle_increment_rad=float(angles[1] - angles[0]),
+            scan_time_s=0.1, range_min_m=0.05, range_max_m=12.0, ranges_m=ranges,
+        ))  # fmt: skip
+        h.step(t)
+
+    def occupied(y0: float, y1: float) -> int:
+        """Occupied cells of the cart's lane (x = 4..5 m, and a cell either side) between y0 and y1."""
+        states = h.service.grid.states()
+        return int((states[round(y0 / 0.05) : round(y1 / 0.05), 78:102] == 100).sum())
+
+    for k in range(60):  # from y = 5.0 to 2.0 at 0.5 m/s
+        scan_at(0.1 * k, 5.0 - 0.05 * k)
+    assert occupied(0.5, 5.5) == 0
+    for k in range(60, 66):  # parked at y = 2.0
+        scan_at(0.1 * k, 2.0)
+    assert occupied(1.6, 2.4) > 10  # its west face and corners, marked
+    assert occupied(2.5, 5.5) == 0
