@@ -303,7 +303,8 @@ def track_scan(
         can_move &= facing_returns(local)
         fixed = static(points) if static is not None else np.zeros(len(points), dtype=bool)
         can_move &= ~fixed
-        velocities = point_velocities(points, previous.points, dt, params.moving_speed_mps, can_move=can_move)
+        if can_move.any():  # most scans of a static scene: nothing to measure
+            velocities = point_velocities(points, previous.points, dt, params.moving_speed_mps, can_move=can_move)
         objects = _objects(points, r[ok], angle_increment_rad, beams, len(r), params)
         carried = _Carried(np.zeros_like(velocities), np.zeros(len(points)), np.zeros((0, 2)), np.zeros(0, int), dt)
         was_moving = previous.moving()
@@ -320,8 +321,7 @@ def track_scan(
             carried = _Carried(
                 carried.velocities, carried.unseen_s, previous.points[was_moving][landed], objects[nearest[landed]], dt
             )
-        flow = _normal_flow(points, previous.points, dt)
-        unseen = _move_objects(objects, velocities, carried, flow, fixed, points, params)
+        unseen = _move_objects(objects, velocities, carried, previous.points, fixed, points, params)
     return TrackedScan(
         stamp_s, (x, y, th), float(angle_min_rad), float(angle_increment_rad), r, beams, points, velocities, unseen
     )
@@ -423,7 +423,7 @@ def _move_objects(
     label: NDArray[np.int64],
     velocities: FloatArray,
     carried: _Carried,
-    flow: FloatArray,
+    previous_points: FloatArray,
     fixed: NDArray[np.bool_],
     points: FloatArray,
     params: TrackingParams,
@@ -431,15 +431,15 @@ def _move_objects(
     """Objects no wider than ``max_object_m`` move as a whole when at least 3 and ``min_moving_share`` of their
     returns move (``velocities``) or continue a previous moving return, or when all of an object's one or two
     returns continue one (a face seen edge-on breaks into such fragments), else not at all; at the velocity
-    :func:`_object_velocity` fits, while it is at least ``moving_speed_mps``. Motion the normals leave open (a
-    side sliding along itself) is carried over while the face's ends still slide (:func:`_slid_along`), and for
-    at most ``max_unseen_s`` when they cannot tell. Larger objects (walls) keep their returns' own velocities: a
-    wall sliding along itself fits any carried velocity. Updates ``velocities`` in place; returns the (M,)
-    unseen times."""
+    :func:`_object_velocity` fits to its returns' :func:`_normal_flow`, while it is at least
+    ``moving_speed_mps``. Motion the normals leave open (a side sliding along itself) is carried over while the
+    face's ends still slide (:func:`_slid_along`), and for at most ``max_unseen_s`` when they cannot tell.
+    Larger objects (walls) keep their returns' own velocities: a wall sliding along itself fits any carried
+    velocity. Updates ``velocities`` in place; returns the (M,) unseen times."""
     unseen = np.zeros(len(points))
     own = np.any(velocities != 0.0, axis=1)
     continues = np.any(carried.velocities != 0.0, axis=1)
-    for k in np.unique(label):
+    for k in np.unique(label[own | continues]):  # an object without either stays static
         members = label == k
         extent = points[members].max(axis=0) - points[members].min(axis=0)
         if math.hypot(*extent) > params.max_object_m:
@@ -452,7 +452,8 @@ def _move_objects(
             continue
         linked = members & continues
         prior = np.median(carried.velocities[linked], axis=0) if linked.any() else np.zeros(2)
-        velocity, seen_speed, open_direction = _object_velocity(flow[members], prior, params.min_constraint_share)
+        flow = _normal_flow(points[members], previous_points, carried.dt_s)
+        velocity, seen_speed, open_direction = _object_velocity(flow, prior, params.min_constraint_share)
         age = 0.0
         if int(own[members].sum()) < 3 and seen_speed < params.moving_speed_mps and linked.any():
             slid = None
