@@ -2,8 +2,8 @@
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/slam.py                       # four logs, seed 0 (~1 min)
-    .venv/bin/python benchmarks/slam.py --seeds 3             # three noise seeds per log
+    .venv/bin/python benchmarks/slam.py                       # four logs, seeds 0..2 (~4 min)
+    .venv/bin/python benchmarks/slam.py --seeds 1             # seed 0 only
     .venv/bin/python benchmarks/slam.py --logs intel,csail    # some of the logs
 
 Each log (``../shared/refdata/laser2d_carmen``: intel, aces, freiburg-079, csail "corrected") is run exactly as
@@ -11,7 +11,8 @@ Each log (``../shared/refdata/laser2d_carmen``: intel, aces, freiburg-079, csail
 seeded noise (default σ = 0.05 m/√m, 0.05 rad/√rad, 0.02 rad/√m; :mod:`mjnav.estimation.slam_metrics`), the SLAM
 starts at the first corrected pose, and every scan's final (optimised) pose is compared with the corrected pose by
 Kümmerle et al. (2009)'s relative error over two relation sets: consecutive scans, and scans 1 m apart along the
-corrected path.
+corrected path. Figures and verdicts are means over the noise seeds (default three): one run is chaotic in its input
+(whether one loop closure is accepted changes what follows), and seed to seed the mean error moves by about 0.001 m.
 
 Peer: the graph-mapping figures of Kümmerle et al. (2009), mean translational error (Intel 0.031 m, ACES 0.044 m,
 Freiburg 079 0.056 m, MIT CSAIL 0.004 m). They are quoted from secondary sources (the issue, and a second
@@ -179,7 +180,9 @@ def run_log(name: str, seed: int, matched: ScanMatched) -> dict[str, float]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--seeds", type=int, default=1, help="noise seeds per log (0..N-1; default 1)")
+    # One seed is not enough for a verdict: the result is chaotic in the input (a loop closure accepted or not
+    # changes what follows; re-associating a floating-point sum, 1e-13 relative, moved Intel's error by 5 %).
+    parser.add_argument("--seeds", type=int, default=3, help="noise seeds per log (0..N-1; default 3)")
     parser.add_argument(
         "--logs", default=",".join(LOGS), help=f"comma-separated logs to run (default all: {','.join(LOGS)})"
     )
