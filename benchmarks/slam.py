@@ -2,8 +2,8 @@
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/slam.py                       # four logs, seed 0 (~1 min)
-    .venv/bin/python benchmarks/slam.py --seeds 3             # three noise seeds per log
+    .venv/bin/python benchmarks/slam.py                       # four logs, seeds 0..2 (~4 min)
+    .venv/bin/python benchmarks/slam.py --seeds 1             # seed 0 only
     .venv/bin/python benchmarks/slam.py --logs intel,csail    # some of the logs
 
 Each log (``../shared/refdata/laser2d_carmen``: intel, aces, freiburg-079, csail "corrected") is run exactly as
@@ -11,7 +11,8 @@ Each log (``../shared/refdata/laser2d_carmen``: intel, aces, freiburg-079, csail
 seeded noise (default σ = 0.05 m/√m, 0.05 rad/√rad, 0.02 rad/√m; :mod:`mjnav.estimation.slam_metrics`), the SLAM
 starts at the first corrected pose, and every scan's final (optimised) pose is compared with the corrected pose by
 Kümmerle et al. (2009)'s relative error over two relation sets: consecutive scans, and scans 1 m apart along the
-corrected path.
+corrected path. Figures and verdicts are means over the noise seeds (default three): one run is chaotic in its input
+(whether one loop closure is accepted changes what follows), and seed to seed the mean error moves by about 0.001 m.
 
 Peer: the graph-mapping figures of Kümmerle et al. (2009), mean translational error (Intel 0.031 m, ACES 0.044 m,
 Freiburg 079 0.056 m, MIT CSAIL 0.004 m). They are quoted from secondary sources (the issue, and a second
@@ -41,6 +42,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,7 +50,7 @@ from mjnav.commands.slam import CARMEN_MAX_RANGE_M, run_slam
 from mjnav.estimation import read_carmen
 from mjnav.estimation.carmen import CarmenLog
 from mjnav.estimation.scan_matching import PointReference, ScanMatchError
-from mjnav.estimation.slam import GraphSlam, SlamConfig, relative
+from mjnav.estimation.slam import GraphSlam, SlamConfig, compose, relative
 from mjnav.estimation.slam_metrics import (
     DEFAULT_ODOMETRY_NOISE,
     consecutive_relations,
@@ -67,29 +69,69 @@ def verdict(ok: bool, text: str) -> None:
     print(f"  goal {text}: {'met' if ok else 'NOT met'}")
 
 
-def scan_matched_relations(log: CarmenLog) -> tuple[np.ndarray, np.ndarray, float]:
-    """Consecutive scans matched by PL-ICP started at the corrected relative pose, kept when the match is
-    non-degenerate with at least half the points matched: (relations (R, 2), matched relative poses (R, 3), mean
-    distance of the matches from the corrected relative poses in metres: the reference floor)."""
+class ScanMatched(NamedTuple):
+    """Consecutive scans matched by PL-ICP started at the corrected relative pose (pairs kept when the match is
+    non-degenerate with at least half the points matched).
+
+    Attributes:
+        relations: (R, 2) the kept pairs (k, k + 1).
+        measured: (R, 3) their matched relative poses.
+        floor_m: mean translational distance of the matches from the corrected relative poses, metres (the
+            reference floor).
+        cycle_m: mean translational error of the three-scan cycles m(k, k+2)⁻¹ ∘ m(k, k+1) ∘ m(k+1, k+2) over the
+            triples whose three matches are kept, metres (the matcher's self-consistency).
+        cycles: number of those triples.
+    """
+
+    relations: np.ndarray
+    measured: np.ndarray
+    floor_m: float
+    cycle_m: float
+    cycles: int
+
+
+def _plicp(pts: list[np.ndarray], i: int, j: int, initial: np.ndarray) -> np.ndarray | None:
+    """Pose of scan j in scan i's frame by PL-ICP from ``initial``; None when rejected (degenerate, or fewer than
+    half the points matched)."""
+    if pts[i].shape[0] < 20 or pts[j].shape[0] < 20:
+        return None
+    try:
+        m = PointReference(pts[i]).match(pts[j], initial, "plicp", max_correspondence_m=0.3, max_iterations=50)
+    except ScanMatchError:
+        return None
+    return None if m.degenerate or m.score < 0.5 else m.pose
+
+
+def scan_matched_relations(log: CarmenLog) -> ScanMatched:
+    """Match consecutive scans (and every scan with the one two later, for the cycles); see :class:`ScanMatched`."""
     pts = [log.points(k, max_range_m=30.0) for k in range(len(log))]
-    rel, meas, errors = [], [], []
+    pairs: dict[int, np.ndarray] = {}
+    errors = []
     for k in range(len(log) - 1):
-        if pts[k].shape[0] < 20 or pts[k + 1].shape[0] < 20:
-            continue
         z = relative(log.poses[k], log.poses[k + 1])
-        try:
-            m = PointReference(pts[k]).match(pts[k + 1], z, "plicp", max_correspondence_m=0.3, max_iterations=50)
-        except ScanMatchError:
-            continue
-        if not m.degenerate and m.score >= 0.5:
-            e = relative(z, m.pose)
+        m = _plicp(pts, k, k + 1, z)
+        if m is not None:
+            e = relative(z, m)
             errors.append(float(np.hypot(e[0], e[1])))
-            rel.append((k, k + 1))
-            meas.append(m.pose)
-    return np.array(rel, dtype=np.int64), np.array(meas), float(np.mean(errors))
+            pairs[k] = m
+    cycles = []
+    for k in range(len(log) - 2):
+        if k in pairs and k + 1 in pairs:
+            m02 = _plicp(pts, k, k + 2, relative(log.poses[k], log.poses[k + 2]))
+            if m02 is not None:
+                c = relative(m02, compose(pairs[k], pairs[k + 1]))
+                cycles.append(float(np.hypot(c[0], c[1])))
+    keys = sorted(pairs)
+    return ScanMatched(
+        np.array([(k, k + 1) for k in keys], dtype=np.int64),
+        np.array([pairs[k] for k in keys]),
+        float(np.mean(errors)),
+        float(np.mean(cycles)) if cycles else float("nan"),
+        len(cycles),
+    )
 
 
-def run_log(name: str, seed: int, matched: tuple[np.ndarray, np.ndarray, float]) -> dict[str, float]:
+def run_log(name: str, seed: int, matched: ScanMatched) -> dict[str, float]:
     log = read_carmen(REFDATA / "laser2d_carmen" / f"{name}-corrected.log.gz")
     n = len(log)
     ref = log.poses
@@ -120,7 +162,7 @@ def run_log(name: str, seed: int, matched: tuple[np.ndarray, np.ndarray, float])
         "cpu_p99_ms": float(np.percentile(cpu, 99) * 1e3),
         "render_s": render_s,
     }
-    m = relation_error(est, matched[0], matched[1])
+    m = relation_error(est, matched.relations, matched.measured)
     out |= {"m_t": m.trans_mean_m, "m_ts": m.trans_std_m, "m_r": m.rot_mean_deg, "m_n": m.relations}
     for tag, rel in (("c", consecutive_relations(n)), ("d", distance_relations(ref, 1.0))):
         e = relative_pose_error(est, ref, rel)
@@ -138,7 +180,9 @@ def run_log(name: str, seed: int, matched: tuple[np.ndarray, np.ndarray, float])
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--seeds", type=int, default=1, help="noise seeds per log (0..N-1; default 1)")
+    # One seed is not enough for a verdict: the result is chaotic in the input (a loop closure accepted or not
+    # changes what follows; re-associating a floating-point sum, 1e-13 relative, moved Intel's error by 5 %).
+    parser.add_argument("--seeds", type=int, default=3, help="noise seeds per log (0..N-1; default 3)")
     parser.add_argument(
         "--logs", default=",".join(LOGS), help=f"comma-separated logs to run (default all: {','.join(LOGS)})"
     )
@@ -165,7 +209,11 @@ def main() -> int:
         runs = [run_log(name, s, matched) for s in range(args.seeds)]
         r = {k: float(np.mean([x[k] for x in runs])) for k in runs[0]}
         all_cpu.append(r["cpu_ms"])
-        floor = matched[2]
+        # Three independent matches with equal isotropic errors of σ per axis make a cycle error of √3 σ per
+        # axis, so one match is off by about cycle / √3. By the triangle inequality (per relation, then in the
+        # mean) any trajectory that agrees with the true scan relations, the true one included, is at least
+        # floor − cycle / √3 from the corrected relative poses on these pairs.
+        floor, match_err = matched.floor_m, matched.cycle_m / np.sqrt(3.0)
         print(
             f"\n{name}: {int(r['scans'])} scans, {r['keyframes']:.0f} keyframes, {r['loops']:.0f} loop closures "
             f"(mean over {args.seeds} seed(s))"
@@ -179,6 +227,11 @@ def main() -> int:
             f"(noisy odometry {r['d_ot']:.4f} m, {r['d_or']:.3f}°)"
         )
         print(f"  reference floor (PL-ICP of consecutive scans from the corrected relative pose): {floor:.4f} m")
+        print(
+            f"  PL-ICP self-consistency ({matched.cycles} three-scan cycles): {matched.cycle_m:.4f} m, so one match "
+            f"is off by ~{match_err:.4f} m; the true trajectory itself scores >= {floor - match_err:.4f} m "
+            f"against the corrected poses on these pairs ({(floor - match_err) / published:.2f}× graph mapping)"
+        )
         print(
             f"  vs scan-matched relations ({r['m_n']:.0f} consecutive pairs, the floor's matches): "
             f"{r['m_t']:.4f} ± {r['m_ts']:.4f} m, {r['m_r']:.3f}°   (ratio to graph mapping {r['m_t'] / published:.2f})"

@@ -43,6 +43,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
 from sksparse.cholmod import CholmodNotPositiveDefiniteError, Factor, analyze
 
+from mjnav.estimation._graph_kernels import g2o_blocks
 from mjnav.estimation.errors import EstimationError
 
 __all__ = [
@@ -606,33 +607,11 @@ class _Problem:
     def _g2o_blocks(
         self, p: FloatArray, r: FloatArray, w: FloatArray, blocks: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """Gauss–Newton blocks of g2o's χ² (batched 3×3 products). Its exact Hessian is often
+        """Gauss–Newton blocks of g2o's χ² (a numba kernel over the edges). Its exact Hessian is often
         indefinite away from the optimum (wrapped angles, large translational information), and measured on the
         SE-Sync graphs it took more iterations, not fewer."""
         g = self.graph
-        i, j = g.edges[:, 0], g.edges[:, 1]
-        z = g.measurements
-        m = g.num_edges
-        dx, dy = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1]
-        # A = R_zᵀ R_iᵀ = R(−θ_i − θ_z); e_t = A (t_j − t_i) − R_zᵀ t_z.
-        ca, sa = np.cos(p[i, 2] + z[:, 2]), np.sin(p[i, 2] + z[:, 2])
-        ji = np.zeros((m, 3, 3))
-        jj = np.zeros((m, 3, 3))
-        jj[:, 0, 0], jj[:, 0, 1], jj[:, 1, 0], jj[:, 1, 1] = ca, sa, -sa, ca
-        ji[:, :2, :2] = -jj[:, :2, :2]
-        ji[:, 0, 2] = -sa * dx + ca * dy  # dA/dθ_i (t_j − t_i)
-        ji[:, 1, 2] = -ca * dx - sa * dy
-        ji[:, 2, 2] = -1.0
-        jj[:, 2, 2] = 1.0
-        om = g.information * w[:, None, None]
-        jit = np.swapaxes(ji, 1, 2)
-        jjt = np.swapaxes(jj, 1, 2)
-        wjj = om @ jj  # batched 3×3 products (matmul's own loops; einsum is several times slower here)
-        blocks[:, 0] = jit @ (om @ ji)
-        blocks[:, 1] = jit @ wjj
-        blocks[:, 3] = jjt @ wjj
-        wr = (om @ r[:, :, None])[:, :, 0]
-        return (jit @ wr[:, :, None])[:, :, 0], (jjt @ wr[:, :, None])[:, :, 0]
+        return g2o_blocks(p, g.edges[:, 0].copy(), g.edges[:, 1].copy(), g.measurements, g.information, w, r, blocks)
 
 
 def _check_connected(graph: PoseGraph) -> None:

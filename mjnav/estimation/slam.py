@@ -34,8 +34,10 @@ diag(σ_t², σ_t², σ_θ²) with σ_t² = ``edge_sigma_m``² + ``edge_sigma_pe
 σ_θ² = ``edge_sigma_rad``² + ``edge_sigma_rad_per_rad``²·|Δθ|, raised to the front-end match's own covariance
 (rotated into the edge's frame) where that is larger, with a direction the match cannot observe counted as one
 dead-reckoned scan (0.05 m, 2°): along a corridor the edge stays soft and a loop closure, not the corridor's
-ambiguous match, places the keyframe there. A loop edge has diag(``loop_sigma_m``², ``loop_sigma_m``²,
-``loop_sigma_rad``²).
+ambiguous match, places the keyframe there. A loop edge has the covariance of its PL-ICP match, shape and
+correlations kept but scaled so that its best-constrained translational direction has σ = ``loop_sigma_m`` (PL-ICP's
+own σ, a few millimetres, is far too confident) and its heading σ at least ``loop_sigma_rad``: a closure in a
+corridor, whose match slides along it, holds the keyframe across the corridor and hardly along it.
 
 :class:`Localizer` tracks the pose on a fixed occupancy map from an initial pose and covariance (as RViz's
 "2D Pose Estimate" sends it): odometry predicts the pose and grows the covariance; the scan is matched by branch
@@ -268,8 +270,9 @@ class SlamConfig:
         edge_sigma_per_m: its growth: σ_t² = edge_sigma_m² + edge_sigma_per_m²·d, metres per √metre.
         edge_sigma_rad: front-end edge rotational σ at zero motion, radians.
         edge_sigma_rad_per_rad: its growth with the turned angle, √radians.
-        loop_sigma_m: loop edge translational σ, metres.
-        loop_sigma_rad: loop edge rotational σ, radians.
+        loop_sigma_m: σ of a loop edge's best-constrained translational direction (the match covariance's shape
+            sets the others), metres.
+        loop_sigma_rad: floor of a loop edge's rotational σ, radians.
         optimize_min_chi2: the graph is optimised once the loop edges added since the last optimisation have a
             summed χ² error (under their information, at the current poses) above this; smaller disagreements
             wait for the next closure.
@@ -795,7 +798,6 @@ class GraphSlam:
         d_max = float(np.sqrt(np.max(np.einsum("ij,ij->i", scan, scan))))
         step = cfg.loop_resolution_m / max(d_max, 1.0)  # the farthest point moves at most one cell per step
         chi2 = 0.0
-        info = np.diag([cfg.loop_sigma_m**-2, cfg.loop_sigma_m**-2, cfg.loop_sigma_rad**-2])
         var_t, var_r = self._chain_variances(k)
         for _d, i in candidates[: cfg.loop_candidates]:
             sub = self._submaps[i]
@@ -824,16 +826,33 @@ class GraphSlam:
                 or math.hypot(jump[0], jump[1]) > 2.0 * cfg.loop_resolution_m
             ):
                 continue
+            info = self._loop_information(fine.covariance, float(fine.pose[2]))
             g.edges.append((sub.anchor, k))
             g.measurements.append(fine.pose.copy())
             g.information.append(info)
             g.loop.append(True)
-            g.var_t.append(cfg.loop_sigma_m**2)
-            g.var_r.append(cfg.loop_sigma_rad**2)
+            g.var_t.append(1.0 / info[0, 0])
+            g.var_r.append(1.0 / info[2, 2])
             self._loop_closures += 1
             e = _relative1(fine.pose, init)
             chi2 += float(e @ info @ e)
         return chi2
+
+    def _loop_information(self, cov: FloatArray, theta: float) -> FloatArray:
+        """Information of a loop edge from its PL-ICP match: the match covariance ``cov`` (submap frame, the
+        matched keyframe at heading ``theta`` there) keeps its shape but is scaled so that its best-constrained
+        translational direction has σ = ``loop_sigma_m`` (PL-ICP's own scale is far too confident), its heading σ
+        floored at ``loop_sigma_rad``, and rotated into the keyframe's frame (where the graph measures the edge's
+        error). A match that slides along a corridor thus holds the keyframe across the corridor, not along it."""
+        cfg = self.config
+        c = 0.5 * (cov + cov.T)
+        smallest = float(np.linalg.eigvalsh(c[:2, :2])[0])
+        if smallest > 0.0:
+            c = c * (cfg.loop_sigma_m**2 / smallest)
+        ct, st = math.cos(theta), math.sin(theta)
+        rot = np.array([[ct, st, 0.0], [-st, ct, 0.0], [0.0, 0.0, 1.0]])
+        info = np.linalg.inv(rot @ _floor_cov(c, cfg.loop_sigma_m, cfg.loop_sigma_rad) @ rot.T)
+        return 0.5 * (info + info.T)
 
     def _optimize(self) -> None:
         g = self._graph

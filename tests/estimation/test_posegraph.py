@@ -18,7 +18,7 @@ from mjnav.estimation import (
     sesync_objective,
     sesync_weights,
 )
-from mjnav.estimation.posegraph import _Problem, _sesync_matrix, _wrap
+from mjnav.estimation.posegraph import _g2o_errors, _Problem, _sesync_matrix, _wrap
 
 
 def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -179,6 +179,23 @@ def test_gradient_and_hessian_match_finite_differences(objective: str, robust: s
             gp = problem.normal_equations(p + dp)[2]
             gm = problem.normal_equations(p - dp)[2]
             np.testing.assert_allclose(hd[:, k], (gp - gm) / (2 * eps), rtol=1e-4, atol=1e-4)  # both halves
+
+
+def test_g2o_gauss_newton_hessian_is_jt_omega_j_of_finite_difference_jacobians() -> None:
+    # The g2o blocks (a numba kernel) against Jᵀ Ω J with J the finite-difference Jacobian of the edge errors.
+    rng = np.random.default_rng(12)
+    truth = trajectory(rng, 6)
+    graph = make_graph(truth, [(0, 5), (1, 4), (2, 5)], noise=0.3, rng=rng)
+    p = truth + 0.2 * rng.standard_normal(truth.shape)
+    h_gn = _Problem(graph, "g2o", None, 1.0).normal_equations(p)[0].toarray()
+    eps = 1e-6
+    jac = np.zeros((graph.num_edges, 3, h_gn.shape[0]))
+    for k in range(h_gn.shape[0]):
+        dp = np.zeros_like(p)
+        dp[1:].flat[k] = eps
+        jac[:, :, k] = (_g2o_errors(graph, p + dp) - _g2o_errors(graph, p - dp)) / (2 * eps)
+    expected = np.einsum("eak,eab,ebl->kl", jac, graph.information, jac)
+    np.testing.assert_allclose(h_gn, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
 
 
 def test_robust_kernels_down_weight_an_outlier_loop_closure(rng: np.random.Generator) -> None:

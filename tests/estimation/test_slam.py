@@ -56,6 +56,32 @@ def test_loop_closure_is_found_and_lowers_the_error(seed: int) -> None:
     assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
 
 
+def test_loop_edges_carry_the_scaled_match_covariance() -> None:
+    with_loops, _, _ = _run(2, 0)
+    graph = with_loops.pose_graph()
+    cfg = with_loops.config
+    loops = set(map(tuple, with_loops.loop_edges().tolist()))
+    rows = [r for r, e in enumerate(graph.edges.tolist()) if tuple(e) in loops]
+    assert rows
+    for r in rows:
+        cov = np.linalg.inv(graph.information[r])
+        assert math.sqrt(np.linalg.eigvalsh(cov[:2, :2])[0]) == pytest.approx(cfg.loop_sigma_m, rel=1e-6)
+        assert cov[2, 2] >= cfg.loop_sigma_rad**2 * (1 - 1e-9)
+
+
+def test_loop_information_is_soft_along_a_corridor_in_the_keyframes_frame() -> None:
+    cfg = SlamConfig()
+    slam = GraphSlam(cfg)
+    # A PL-ICP covariance of a corridor along the submap's x axis: x ten times less certain than y.
+    cov = np.diag([1e-4, 1e-6, 1e-6])
+    info = slam._loop_information(cov, math.pi / 2)  # the keyframe faces +y: the corridor is its y axis
+    c = np.linalg.inv(info)
+    assert math.sqrt(c[0, 0]) == pytest.approx(cfg.loop_sigma_m)  # across the corridor: the loop σ
+    assert math.sqrt(c[1, 1]) == pytest.approx(10.0 * cfg.loop_sigma_m)  # along it: ten times softer
+    # The heading is scaled by the same factor (σ 1e-3 rad × loop_sigma_m / 1e-3 m), above the loop_sigma_rad floor.
+    assert math.sqrt(c[2, 2]) == pytest.approx(max(cfg.loop_sigma_rad, cfg.loop_sigma_m))
+
+
 def test_outputs_of_a_short_run() -> None:
     truth = ring_drive(0.2)
     rng = np.random.default_rng(5)
