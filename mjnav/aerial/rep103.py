@@ -22,6 +22,8 @@ _Q_FLU_FRD = np.array([0.0, 1.0, 0.0, 0.0])  # rotation by π about x
 def enu_to_ned(v: Any) -> np.ndarray:
     """(…, 3) ENU vectors (m, m/s, …) as NED: ``(y, x, -z)``."""
     a = np.asarray(v, dtype=np.float64)
+    if a.ndim == 1:  # one vector: np.stack's generality costs more than the swap itself
+        return np.array((a[1], a[0], -a[2]))
     return np.stack([a[..., 1], a[..., 0], -a[..., 2]], axis=-1)
 
 
@@ -33,6 +35,8 @@ def ned_to_enu(v: Any) -> np.ndarray:
 def flu_to_frd(v: Any) -> np.ndarray:
     """(…, 3) body FLU vectors (rad/s, m/s², …) as FRD, ``(x, -y, -z)``; also FRD → FLU."""
     a = np.asarray(v, dtype=np.float64)
+    if a.ndim == 1:
+        return np.array((a[0], -a[1], -a[2]))
     return np.stack([a[..., 0], -a[..., 1], -a[..., 2]], axis=-1)
 
 
