@@ -29,7 +29,10 @@ class InsConfig:
     """INS settings (``services/ins.toml``).
 
     Attributes:
-        rate_hz: publishing rate (steps per sim second; the clock's rate or a divisor of it).
+        rate_hz: publishing rate (steps per sim second; the clock's rate or a divisor of it). The filter predicts at
+            every IMU sample whatever the rate; a step handles the samples since the last one. 10 Hz (the GPS rate)
+            keeps the INS out of four lockstep rounds in five; the flight controller extrapolates the newest
+            estimate by its velocity to its own step.
         imu_rate_hz: the IMU's rate (the filter's prediction period), Hz.
         accel_noise_mps2, accel_bias_walk_mps2_per_sqrt_s, gps_sigma_m: the filter's noise model.
         history_s: how late a GPS fix may arrive, s.
@@ -38,7 +41,7 @@ class InsConfig:
         gravity_mps2: gravity removed from the specific force, m/s².
     """
 
-    rate_hz: float = 25.0
+    rate_hz: float = 10.0
     imu_rate_hz: float = 100.0
     accel_noise_mps2: float = 0.02
     accel_bias_walk_mps2_per_sqrt_s: float = 1e-3
