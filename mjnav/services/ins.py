@@ -30,9 +30,10 @@ class InsConfig:
 
     Attributes:
         rate_hz: publishing rate (steps per sim second; the clock's rate or a divisor of it). The filter predicts at
-            every IMU sample whatever the rate; a step handles the samples since the last one. 10 Hz (the GPS rate)
-            keeps the INS out of four lockstep rounds in five; the flight controller extrapolates the newest
-            estimate by its velocity to its own step.
+            every IMU sample whatever the rate; a step handles the samples since the last one. A fix is fused at the
+            first step after it arrives: at 10 Hz (the GPS rate, one lockstep round in five) the corrections reach
+            the flight controller 40 ms later than at 25 Hz, which costs a flight on the INS about 5 cm RMS and
+            20 cm of maximum error (seed 0).
         imu_rate_hz: the IMU's rate (the filter's prediction period), Hz.
         accel_noise_mps2, accel_bias_walk_mps2_per_sqrt_s, gps_sigma_m: the filter's noise model.
         history_s: how late a GPS fix may arrive, s.
@@ -41,7 +42,7 @@ class InsConfig:
         gravity_mps2: gravity removed from the specific force, m/s².
     """
 
-    rate_hz: float = 10.0
+    rate_hz: float = 25.0
     imu_rate_hz: float = 100.0
     accel_noise_mps2: float = 0.02
     accel_bias_walk_mps2_per_sqrt_s: float = 1e-3
