@@ -20,10 +20,11 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
+from numba import njit
 from scipy.optimize import brentq
 
 from mjnav.aerial.errors import DesignError, InvalidParameterError, LoopSeparationError
-from mjnav.aerial.quadrotor import QuadrotorParams, mix, rotor_speeds_for_thrusts
+from mjnav.aerial.quadrotor import QuadrotorParams, _mix_kernel, _mixer_inverse
 
 __all__ = [
     "PID",
@@ -117,27 +118,56 @@ class PID:
             raise InvalidParameterError(f"dt must be > 0, got {dt}")
         sp = np.asarray(setpoint, dtype=np.float64)
         y = np.asarray(measurement, dtype=np.float64)
-        e = sp - y
         if measurement_rate is not None:
-            raw = -np.asarray(measurement_rate, dtype=np.float64)
-        elif self._last_meas is None:
-            raw = np.zeros(self.dim)
+            rate, mode = np.asarray(measurement_rate, dtype=np.float64), _D_GIVEN
         else:
-            raw = -(y - self._last_meas) / dt
-        self._last_meas = y.copy()
-        if self.d_cutoff_hz is None:
-            self.derivative[:] = raw
+            rate, mode = y, _D_NONE if self._last_meas is None else _D_DIFFERENCE
+        if self._last_meas is None:
+            self._last_meas = np.zeros(self.dim)
+        return _pid_step(self._state(dt), sp, y, rate, mode, dt)
+
+    def _state(self, dt: float) -> _PidState:
+        """The arrays `_pid_step` reads and updates in place (``_last_meas`` must exist)."""
+        alpha = -1.0 if self.d_cutoff_hz is None else dt / (dt + 1.0 / (2.0 * math.pi * self.d_cutoff_hz))
+        assert self._last_meas is not None
+        return (
+            self.kp, self.ki, self.kd, self.integral_limit, self.output_limit, alpha,
+            self.integral, self.derivative, self._last_meas,
+        )  # fmt: skip
+
+
+#: How `_pid_step` gets the derivative term: none (first call), by differencing the measurement, or given.
+_D_NONE, _D_DIFFERENCE, _D_GIVEN = 0, 1, 2
+#: (kp, ki, kd, integral limit, output limit, derivative filter α (< 0: unfiltered), integral, derivative,
+#: last measurement): a `PID`'s gains and its state arrays, updated in place by `_pid_step`.
+_PidState = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]
+
+
+@njit(cache=True)
+def _pid_step(state: Any, sp: np.ndarray, y: np.ndarray, rate: np.ndarray, mode: int, dt: float) -> np.ndarray:
+    """One `PID.update` on (dim,) arrays: returns the output; the integral, derivative and last measurement of
+    ``state`` (see `_PidState`) are updated in place. ``rate`` is the measurement's derivative (``mode`` _D_GIVEN)."""
+    kp, ki, kd, ilim, olim, alpha, integral, derivative, last = state
+    out = np.empty(sp.shape[0])
+    for i in range(sp.shape[0]):
+        e = sp[i] - y[i]
+        if mode == _D_GIVEN:
+            raw = -rate[i]
+        elif mode == _D_DIFFERENCE:
+            raw = -(y[i] - last[i]) / dt
         else:
-            alpha = dt / (dt + 1.0 / (2.0 * math.pi * self.d_cutoff_hz))
-            self.derivative += alpha * (raw - self.derivative)
-        unsat = self.kp * e + self.integral + self.kd * self.derivative
-        out = np.clip(unsat, -self.output_limit, self.output_limit)
+            raw = 0.0
+        last[i] = y[i]
+        if alpha < 0.0:
+            derivative[i] = raw
+        else:
+            derivative[i] += alpha * (raw - derivative[i])
+        unsat = kp[i] * e + integral[i] + kd[i] * derivative[i]
+        out[i] = min(max(unsat, -olim[i]), olim[i])
         # conditional integration: not while saturated in the direction the error pushes
-        pushing = ((unsat > self.output_limit) & (e > 0)) | ((unsat < -self.output_limit) & (e < 0))
-        self.integral = np.where(
-            pushing, self.integral, np.clip(self.integral + self.ki * e * dt, -self.integral_limit, self.integral_limit)
-        )
-        return out
+        if not ((unsat > olim[i] and e > 0.0) or (unsat < -olim[i] and e < 0.0)):
+            integral[i] = min(max(integral[i] + ki[i] * e * dt, -ilim[i]), ilim[i])
+    return out
 
 
 @dataclass(frozen=True)
@@ -286,15 +316,33 @@ class CascadeController:
             if accel_ff is not None:
                 a_sp = a_sp + np.asarray(accel_ff, dtype=np.float64)
         self.velocity_sp, self.accel_sp = v_sp, a_sp
-        q_sp, thrust = self.attitude_from_accel(a_sp, yaw_sp, quat)
-        self.attitude_sp, self.thrust_sp_n = q_sp, thrust
-        rate_sp = self.attitude_control(quat, q_sp)
-        self.rate_sp = rate_sp
-        ang_acc = self.rate_pid.update(rate_sp, omega, dt, measurement_rate=None)
-        inertia = np.asarray(self.params.inertia_kgm2)
-        torque = inertia * ang_acc + _cross(omega, inertia * omega)
-        self.torque_sp_nm = torque
-        return rotor_speeds_for_thrusts(self.params, mix(self.params, thrust, torque))
+        if not dt > 0.0:
+            raise InvalidParameterError(f"dt must be > 0, got {dt}")
+        rate = self.rate_pid
+        mode = _D_NONE if rate._last_meas is None else _D_DIFFERENCE
+        if rate._last_meas is None:
+            rate._last_meas = np.zeros(3)
+        q_sp, thrust, rate_sp, torque, speeds = _inner_loops(
+            a_sp, float(yaw_sp), quat, omega, dt, mode, rate._state(dt), self._vehicle, self._attitude_gains
+        )
+        self.attitude_sp, self.thrust_sp_n, self.rate_sp, self.torque_sp_nm = q_sp, thrust, rate_sp, torque
+        return speeds
+
+    @property
+    def _vehicle(self) -> tuple[float, float, np.ndarray, np.ndarray, float, float]:
+        """(mass kg, gravity m/s², inertia (3,) kg m², mixer inverse (4, 4), max rotor thrust N, k_f) for the
+        kernels."""
+        p = self.params
+        return (
+            p.mass_kg, p.gravity_mps2, np.asarray(p.inertia_kgm2, dtype=np.float64), _mixer_inverse(p),
+            p.max_rotor_thrust_n, p.thrust_coeff,
+        )  # fmt: skip
+
+    @property
+    def _attitude_gains(self) -> tuple[float, np.ndarray, float]:
+        """(tan of the tilt limit, attitude P (3,) 1/s, body-rate limit rad/s) for the kernels."""
+        g = self.gains
+        return math.tan(g.max_tilt_rad), np.asarray(g.att_p, dtype=np.float64), g.max_rate_rad_s
 
     def attitude_from_accel(self, accel_sp: np.ndarray, yaw_sp: float, quat: np.ndarray) -> tuple[np.ndarray, float]:
         """Attitude setpoint (4,) quaternion and collective thrust (N) realising an NED acceleration setpoint.
@@ -303,43 +351,103 @@ class CascadeController:
         ``yaw_sp``; the collective thrust is its projection on the current body -z axis.
         """
         p = self.params
-        f = p.mass_kg * (np.asarray(accel_sp, dtype=np.float64) - np.array([0.0, 0.0, p.gravity_mps2]))
-        if f[2] > -1e-6:  # never command thrust downwards
-            f[2] = -1e-6
-        horiz = math.hypot(f[0], f[1])
-        max_h = -f[2] * math.tan(self.gains.max_tilt_rad)
-        if horiz > max_h:
-            f[0:2] *= max_h / horiz
-        zb = -f / np.linalg.norm(f)
-        xc = np.array([math.cos(yaw_sp), math.sin(yaw_sp), 0.0])
-        yb = _cross(zb, xc)
-        yb /= np.linalg.norm(yb)
-        xb = _cross(yb, zb)
-        q_sp = _quat_from_matrix(np.column_stack([xb, yb, zb]))
-        w, qx, qy, qz = quat
-        body_z = np.array([2 * (qx * qz + w * qy), 2 * (qy * qz - w * qx), 1 - 2 * (qx * qx + qy * qy)])
-        thrust = max(0.0, float(-f @ body_z))
-        return q_sp, thrust
+        return _attitude_from_accel(
+            np.asarray(accel_sp, dtype=np.float64),
+            float(yaw_sp),
+            np.asarray(quat, dtype=np.float64),
+            p.mass_kg,
+            p.gravity_mps2,
+            math.tan(self.gains.max_tilt_rad),
+        )
 
     def attitude_control(self, quat: np.ndarray, quat_sp: np.ndarray) -> np.ndarray:
         """Body-rate setpoint (3,) rad/s: ``att_p ⊙ 2 sign(q_e,w) q_e,xyz`` with ``q_e = q⁻¹ ⊗ q_sp``, clipped."""
-        qc = np.array([quat[0], -quat[1], -quat[2], -quat[3]])
-        qe = _qmul(qc, quat_sp)
-        vec = 2.0 * math.copysign(1.0, qe[0]) * qe[1:]
-        lim = self.gains.max_rate_rad_s
-        return np.clip(np.asarray(self.gains.att_p) * vec, -lim, lim)
+        g = self.gains
+        return _attitude_control(
+            np.asarray(quat, dtype=np.float64),
+            np.asarray(quat_sp, dtype=np.float64),
+            np.asarray(g.att_p, dtype=np.float64),
+            g.max_rate_rad_s,
+        )
 
 
+# The inner loops compiled (numba): on (3,) and (4,) vectors NumPy's per-call overhead is most of the cost, and the
+# flight controller runs them at every clock tick of a lockstep flight.
+
+
+@njit(cache=True)
+def _attitude_from_accel(
+    accel_sp: np.ndarray, yaw_sp: float, quat: np.ndarray, mass: float, gravity: float, tan_tilt: float
+) -> tuple[np.ndarray, float]:
+    """`CascadeController.attitude_from_accel` (tilt limit given as its tangent)."""
+    f0, f1 = mass * accel_sp[0], mass * accel_sp[1]
+    f2 = min(mass * (accel_sp[2] - gravity), -1e-6)  # never command thrust downwards
+    horiz = math.hypot(f0, f1)
+    max_h = -f2 * tan_tilt
+    if horiz > max_h:
+        f0, f1 = f0 * max_h / horiz, f1 * max_h / horiz
+    n = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    zb = np.array([-f0 / n, -f1 / n, -f2 / n])
+    xc = np.array([math.cos(yaw_sp), math.sin(yaw_sp), 0.0])
+    yb = _cross(zb, xc)
+    yb /= math.sqrt(yb[0] * yb[0] + yb[1] * yb[1] + yb[2] * yb[2])
+    xb = _cross(yb, zb)
+    m = np.empty((3, 3))
+    m[:, 0], m[:, 1], m[:, 2] = xb, yb, zb
+    q_sp = _quat_from_matrix(m)
+    w, qx, qy, qz = quat[0], quat[1], quat[2], quat[3]
+    body_z0, body_z1, body_z2 = 2 * (qx * qz + w * qy), 2 * (qy * qz - w * qx), 1 - 2 * (qx * qx + qy * qy)
+    thrust = max(0.0, -(f0 * body_z0 + f1 * body_z1 + f2 * body_z2))
+    return q_sp, thrust
+
+
+@njit(cache=True)
+def _attitude_control(quat: np.ndarray, quat_sp: np.ndarray, att_p: np.ndarray, lim: float) -> np.ndarray:
+    """`CascadeController.attitude_control`."""
+    qc = np.array([quat[0], -quat[1], -quat[2], -quat[3]])
+    qe = _qmul(qc, quat_sp)
+    sign = 2.0 * math.copysign(1.0, qe[0])
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = min(max(att_p[i] * (sign * qe[i + 1]), -lim), lim)
+    return out
+
+
+@njit(cache=True)
+def _inner_loops(
+    a_sp: np.ndarray,
+    yaw_sp: float,
+    quat: np.ndarray,
+    omega: np.ndarray,
+    dt: float,
+    rate_mode: int,
+    rate_state: Any,
+    vehicle: Any,
+    attitude: Any,
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]:
+    """Acceleration setpoint → attitude setpoint and thrust → body-rate setpoint → rate PID (state updated in
+    place) → torque → mixer → rotor speeds. Returns (q_sp (4,), thrust N, rate_sp (3,), torque (3,) N m,
+    rotor speeds (4,) rad/s)."""
+    mass, gravity, inertia, mix_inv, tmax, k_f = vehicle
+    tan_tilt, att_p, max_rate = attitude
+    q_sp, thrust = _attitude_from_accel(a_sp, yaw_sp, quat, mass, gravity, tan_tilt)
+    rate_sp = _attitude_control(quat, q_sp, att_p, max_rate)
+    ang_acc = _pid_step(rate_state, rate_sp, omega, omega, rate_mode, dt)
+    torque = inertia * ang_acc + _cross(omega, inertia * omega)
+    thrusts = _mix_kernel(mix_inv, thrust, torque, tmax)
+    return q_sp, thrust, rate_sp, torque, np.sqrt(np.maximum(thrusts, 0.0) / k_f)
+
+
+@njit(cache=True)
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two (3,) vectors (np.cross costs ~40 µs of axis handling per call)."""
-    ax, ay, az = float(a[0]), float(a[1]), float(a[2])
-    bx, by, bz = float(b[0]), float(b[1]), float(b[2])
-    return np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
+    """Cross product of two (3,) vectors."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
+@njit(cache=True)
 def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
+    aw, ax, ay, az = a[0], a[1], a[2], a[3]
+    bw, bx, by, bz = b[0], b[1], b[2], b[3]
     return np.array(
         [
             aw * bw - ax * bx - ay * by - az * bz,
@@ -350,22 +458,22 @@ def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
+@njit(cache=True)
 def _quat_from_matrix(m: np.ndarray) -> np.ndarray:
     tr = m[0, 0] + m[1, 1] + m[2, 2]
     if tr > 0:
         s = math.sqrt(tr + 1.0) * 2
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+        q = np.array([0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s])
     elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
         s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+        q = np.array([(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s])
     elif m[1, 1] > m[2, 2]:
         s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+        q = np.array([(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s])
     else:
         s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    qa = np.array(q)
-    return qa / np.linalg.norm(qa)
+        q = np.array([(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s])
+    return q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -730,15 +838,41 @@ class RptController:
     def update(self, pos_ref: Any, vel_ref: Any, acc_ref: Any, pos: Any, vel: Any, dt: float) -> np.ndarray:
         """(3,) acceleration command, m/s², from references and measurements (NED, m, m/s, m/s²)."""
         g = self.gains
-        e = np.asarray(pos_ref, dtype=np.float64) - np.asarray(pos, dtype=np.float64)
-        edot = np.asarray(vel_ref, dtype=np.float64) - np.asarray(vel, dtype=np.float64)
-        self.integral = self.integral + e * dt
-        u = np.asarray(acc_ref, dtype=np.float64) + g.kp * e + g.kd * edot + g.ki * self.integral
-        if math.isfinite(self.accel_limit):
-            sat = np.abs(u) > self.accel_limit
-            self.integral = np.where(sat, self.integral - e * dt, self.integral)
-            u = np.clip(u, -self.accel_limit, self.accel_limit)
-        return u
+        return _rpt_step(
+            (g.kp, g.kd, g.ki, self.accel_limit, dt),
+            self.integral,
+            np.asarray(pos_ref, dtype=np.float64),
+            np.asarray(vel_ref, dtype=np.float64),
+            np.asarray(acc_ref, dtype=np.float64),
+            np.asarray(pos, dtype=np.float64),
+            np.asarray(vel, dtype=np.float64),
+        )
+
+
+@njit(cache=True)
+def _rpt_step(
+    k: tuple[float, float, float, float, float],
+    integral: np.ndarray,
+    pos_ref: np.ndarray,
+    vel_ref: np.ndarray,
+    acc_ref: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+) -> np.ndarray:
+    """`RptController.update` with ``k = (kp, kd, ki, accel limit, dt)``; ``integral`` (3,) is updated in place
+    (not while an axis is saturated)."""
+    kp, kd, ki, limit, dt = k
+    u = np.empty(3)
+    for i in range(3):
+        e = pos_ref[i] - pos[i]
+        grown = integral[i] + e * dt
+        ui = acc_ref[i] + kp * e + kd * (vel_ref[i] - vel[i]) + ki * grown
+        if abs(ui) > limit:
+            u[i] = min(max(ui, -limit), limit)
+        else:
+            u[i] = ui
+            integral[i] = grown
+    return u
 
 
 def closed_loop_bandwidth(A: Any, B: Any, C: Any, D: Any = None, *, w_max: float = 1e5) -> float:

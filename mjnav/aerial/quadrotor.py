@@ -169,17 +169,28 @@ def mix(params: QuadrotorParams, thrust_n: float, torque_nm: np.ndarray) -> np.n
     tau = np.asarray(torque_nm, dtype=np.float64)
     if tau.shape != (3,):
         raise InvalidParameterError(f"torque_nm must have shape (3,), got {tau.shape}")
-    inv = _mixer_inverse(params)
-    base = inv @ np.array([thrust_n, tau[0], tau[1], 0.0])
-    yaw = inv[:, 3] * tau[2]
-    tmax = params.max_rotor_thrust_n
+    return _mix_kernel(_mixer_inverse(params), float(thrust_n), tau, params.max_rotor_thrust_n)
+
+
+@njit(cache=True)
+def _mix_kernel(inv: np.ndarray, thrust_n: float, tau: np.ndarray, tmax: float) -> np.ndarray:
+    """`mix` with the mixer inverse (4, 4) and the maximum rotor thrust (N) given."""
+    base = np.empty(4)
+    yaw = np.empty(4)
+    for i in range(4):
+        base[i] = inv[i, 0] * thrust_n + inv[i, 1] * tau[0] + inv[i, 2] * tau[1]
+        yaw[i] = inv[i, 3] * tau[2]
     scale = 1.0
-    for b, y in zip(base, yaw, strict=True):
+    for i in range(4):
+        b, y = base[i], yaw[i]
         if y > 0.0 and b + y > tmax:
             scale = min(scale, max(0.0, (tmax - b) / y))
         elif y < 0.0 and b + y < 0.0:
             scale = min(scale, max(0.0, -b / y))
-    return np.clip(base + scale * yaw, 0.0, tmax)
+    out = np.empty(4)
+    for i in range(4):
+        out[i] = min(max(base[i] + scale * yaw[i], 0.0), tmax)
+    return out
 
 
 def rotor_speeds_for_thrusts(params: QuadrotorParams, thrusts_n: np.ndarray) -> np.ndarray:

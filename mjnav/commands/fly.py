@@ -185,8 +185,11 @@ def fly_on_bus(bus: Any, services: list[str], plan: Any, rtf: float, *, stream_u
         raise RuntimeError(f"services did not come up within 180 s (alive: {bus.alive_services(0.5)})")
     cfg = json.loads(bus.call("config", service="uav_sim", timeout_s=10.0).data)
     origin = (float(cfg["origin_lat_deg"]), float(cfg["origin_lon_deg"]), float(cfg["origin_alt_m"]))
-    # The client steps every fifth clock tick: the sim waits for it only then (it measures on every tick).
-    client = FlightClient(bus, origin, name=FLIGHT, period_s=5.0 / float(cfg["clock_rate_hz"]))
+    # The client steps every ~0.2 s of sim time (whole clock ticks), its resend period: the sim waits for it only
+    # then (it measures on every tick).
+    rate = float(cfg["clock_rate_hz"])
+    period = max(1, round(0.2 * rate)) / rate
+    client = FlightClient(bus, origin, name=FLIGHT, period_s=period, resend_s=period)
     timeout = plan.end_s + 30.0
     wall = 3.0 * timeout / (rtf if rtf > 0 else 5.0) + 120.0
     return client.fly(plan, timeout_s=timeout, wall_timeout_s=wall, stream_until_s=stream_until_s)

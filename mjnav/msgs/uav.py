@@ -6,6 +6,7 @@ quaternions are passed as (w, x, y, z) arrays here and written in ROS order.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -148,14 +149,22 @@ def trajectory(frame_id: str, stamps_s: Any, positions_m: Any, yaws_rad: Any = N
 
 def trajectory_arrays(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(stamps (N,) s, positions (N, 3) m, yaws (N,) rad) of a trajectory Path."""
-    n = len(msg.poses)
-    ts, pts, yaw = np.empty(n), np.empty((n, 3)), np.empty(n)
-    for i, ps in enumerate(msg.poses):
-        ts[i] = seconds(ps.header.stamp)
-        pts[i] = position(ps.pose)
-        q = ps.pose.orientation
-        yaw[i] = np.arctan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-    return ts, pts, yaw
+    rows = [
+        (
+            seconds(ps.header.stamp),
+            ps.pose.position.x,
+            ps.pose.position.y,
+            ps.pose.position.z,
+            ps.pose.orientation,
+        )
+        for ps in msg.poses
+    ]
+    data = np.array([r[:4] for r in rows], dtype=np.float64).reshape(-1, 4)
+    yaw = np.array(
+        [math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z)) for *_, q in rows],
+        dtype=np.float64,
+    )
+    return data[:, 0].copy(), data[:, 1:4].copy(), yaw
 
 
 def boolean(value: bool) -> Any:

@@ -25,7 +25,9 @@ arming, the failsafe), ``DLG`` (``flight_state``). The tasks' measured run times
 from __future__ import annotations
 
 import math
+import threading
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -38,6 +40,10 @@ from mjnav.runtime import Service
 #: Flight states published on ``flight_state``.
 STATES = ("disarmed", "armed", "offboard", "landing", "failsafe_land")
 _ROTORS = ("rotor0", "rotor1", "rotor2", "rotor3")
+#: Peers' messages kept per topic until a step uses them (a peer steps at most once per clock tick).
+_KEEP = 8
+#: A peer's message stamped within this of a step's time was made at that step (sim seconds; ticks are 20 ms).
+_STAMP_EPS_S = 1e-6
 
 
 @dataclass(frozen=True)
@@ -161,15 +167,42 @@ class FlightControllerService(Service[FlightControllerConfig]):
 
         quat_enu_flu_to_ned_frd([1.0, 0.0, 0.0, 0.0])
         self.ctl.update(hover_state(self.params), np.zeros(3), 0.0, 1.0 / cfg.rate_hz)
-        state_topic = "mocap" if cfg.state_source == "mocap" else "ins_odom"
-        self.state_sub = self.bus.subscribe(state_topic)
+        # Peers' messages are kept by stamp (see _take_newest): the sim's mocap and IMU samples reach the
+        # controller in order with the clock, but a lockstep peer's output of step t (the INS's estimate, the
+        # flight client's trajectory) may reach it before or after clock t, as the router happens to schedule the
+        # two links; a step at t uses only what the peers made at earlier steps, whatever the arrival order.
+        self._lock = threading.Lock()
+        self._ins_odom: deque[Any] = deque(maxlen=_KEEP)
+        self._trajectories: deque[Any] = deque(maxlen=_KEEP)
+        if cfg.state_source == "mocap":
+            self.state_sub: Any = self.bus.subscribe("mocap")
+        else:
+            self.state_sub = self.bus.subscribe("ins_odom", callback=self._keep(self._ins_odom))
         # mocap carries attitude and rates; with the INS they come from the newest IMU sample
         self.imu_sub = self.bus.subscribe("imu") if cfg.state_source == "ins" else None
         self.setpoint_sub = self.bus.subscribe("setpoint")
-        self.trajectory_sub = self.bus.subscribe("trajectory")
+        self.trajectory_sub = self.bus.subscribe("trajectory", callback=self._keep(self._trajectories))
         self.arm_sub = self.bus.subscribe("arm")
         self.rotor_pub = self.bus.publisher("rotor_cmd")
         self.state_pub = self.bus.publisher("flight_state")
+
+    def _keep(self, into: deque[Any]) -> Any:
+        def keep(msg: Any) -> None:
+            with self._lock:
+                into.append(msg)
+
+        return keep
+
+    def _take_newest(self, kept: deque[Any], now: float) -> Any:
+        """Take the newest kept message (``None`` if there is none) that was not made at sim time ``now``; the older
+        ones are dropped. A message stamped ``now`` is a lockstep peer's output of this very step that arrived
+        early: it stays for the next step, where it would have been seen had it arrived after the clock.
+        """
+        with self._lock:
+            found = None
+            while kept and abs(ros.seconds(kept[0].header.stamp) - now) > _STAMP_EPS_S:
+                found = kept.popleft()
+            return found
 
     @staticmethod
     def _timed(fn: Any) -> Any:
@@ -215,6 +248,10 @@ class FlightControllerService(Service[FlightControllerConfig]):
         self._still_since: float | None = None  # since when the vehicle sits on the ground while landing
         self._now = 0.0
         self._outbox: list[tuple[Any, Any]] = []  # (publisher, message) made by this step's tasks
+        self._ins_state: Any = None  # the INS estimate in use (ins_odom)
+        with self._lock:
+            self._ins_odom.clear()
+            self._trajectories.clear()
         self.ctl.reset()
 
     def step(self, now: float) -> None:
@@ -232,7 +269,11 @@ class FlightControllerService(Service[FlightControllerConfig]):
     def _estimate(self, now: float) -> None:
         from mjnav.aerial.rep103 import enu_to_ned, flu_to_frd, quat_enu_flu_to_ned_frd
 
-        msg = self.state_sub.latest()
+        if self.config.state_source == "mocap":
+            msg = self.state_sub.latest()
+        else:
+            newest = self._take_newest(self._ins_odom, now)
+            msg = self._ins_state = newest if newest is not None else self._ins_state
         if msg is None:
             return
         stamp, pos, quat, vel, rates = uav_msgs.odometry_state(msg)
@@ -298,7 +339,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
         for msg in self.arm_sub.drain():
             self._on_arm(bool(msg.data), now)
         setpoint = self.setpoint_sub.take()
-        trajectory = self.trajectory_sub.take()
+        trajectory = self._take_newest(self._trajectories, now)
         if trajectory is not None and len(trajectory.poses) > 0:
             self.last_setpoint_t = now
             key = (ros.seconds(trajectory.header.stamp), len(trajectory.poses))

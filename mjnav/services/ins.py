@@ -29,7 +29,11 @@ class InsConfig:
     """INS settings (``services/ins.toml``).
 
     Attributes:
-        rate_hz: publishing rate (steps per sim second; the clock's rate or a divisor of it).
+        rate_hz: publishing rate (steps per sim second; the clock's rate or a divisor of it). The filter predicts at
+            every IMU sample whatever the rate; a step handles the samples since the last one. A fix is fused at the
+            first step after it arrives: at 10 Hz (the GPS rate, one lockstep round in five) the corrections reach
+            the flight controller 40 ms later than at 25 Hz, which costs a flight on the INS about 5 cm RMS and
+            20 cm of maximum error (seed 0).
         imu_rate_hz: the IMU's rate (the filter's prediction period), Hz.
         accel_noise_mps2, accel_bias_walk_mps2_per_sqrt_s, gps_sigma_m: the filter's noise model.
         history_s: how late a GPS fix may arrive, s.
@@ -89,9 +93,10 @@ class InsService(Service[InsConfig]):
         warm.predict(np.zeros(3))
         warm.update_gps(np.zeros(3))
         from mjnav.aerial import geodetic_to_ned
-        from mjnav.aerial.rep103 import quat_enu_flu_to_ned_frd
+        from mjnav.aerial.rep103 import kinematic_accel_ned, quat_enu_flu_to_ned_frd
 
         quat_enu_flu_to_ned_frd([1.0, 0.0, 0.0, 0.0])
+        kinematic_accel_ned([[1.0, 0.0, 0.0, 0.0]], [[0.0, 0.0, cfg.gravity_mps2]], cfg.gravity_mps2)
         geodetic_to_ned(cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m, *self._origin)
 
     def activate(self) -> None:
@@ -112,38 +117,39 @@ class InsService(Service[InsConfig]):
             self._fixes.append(msg)
 
     def step(self, now: float) -> None:
-        from mjnav.aerial import StaleMeasurementError, geodetic_to_ned, quat_to_rotation
-        from mjnav.aerial.rep103 import flu_to_frd, quat_enu_flu_to_ned_frd
+        from mjnav.aerial import StaleMeasurementError, geodetic_to_ned
+        from mjnav.aerial.rep103 import flu_to_frd, kinematic_accel_ned, quat_enu_flu_to_ned_frd
 
         cfg = self.config
         with self._lock:
             samples, self._imu = self._imu, []
             fixes, self._fixes = self._fixes, []
-        for msg in samples:
-            t = ros.seconds(msg.header.stamp)
-            o = msg.orientation
-            q = quat_enu_flu_to_ned_frd([o.w, o.x, o.y, o.z])
-            a = msg.linear_acceleration
-            w = msg.angular_velocity
-            f_frd = flu_to_frd([a.x, a.y, a.z])
-            self.last_imu = (t, q, flu_to_frd([w.x, w.y, w.z]))
-            if self.ins is None:
-                if not fixes:
-                    continue
-                fix = fixes[0]
-                p0 = geodetic_to_ned(
-                    fix.latitude, fix.longitude, fix.altitude, cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m
-                )
-                x0 = np.zeros(9)
-                x0[0:3] = p0
-                self.ins = self._make_filter(self._filter_config, x0=x0, t0_s=t)
-                fixes = fixes[1:]
-                continue  # the filter starts at this sample's time; the next sample propagates it
-            acc = quat_to_rotation(q) @ f_frd
-            acc[2] += cfg.gravity_mps2
-            self.ins.predict(acc)
+        if samples:
+            last = samples[-1]
+            o, w = last.orientation, last.angular_velocity
+            self.last_imu = (
+                ros.seconds(last.header.stamp),
+                quat_enu_flu_to_ned_frd([o.w, o.x, o.y, o.z]),
+                flu_to_frd([w.x, w.y, w.z]),
+            )
         if self.ins is None:
-            return
+            # the filter starts at the first fix, at the time of the first IMU sample that comes with or after it;
+            # the next sample propagates it
+            if not fixes or not samples:
+                return
+            fix, first = fixes[0], samples[0]
+            x0 = np.zeros(9)
+            x0[0:3] = geodetic_to_ned(
+                fix.latitude, fix.longitude, fix.altitude, cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m
+            )
+            self.ins = self._make_filter(self._filter_config, x0=x0, t0_s=ros.seconds(first.header.stamp))
+            fixes, samples = fixes[1:], samples[1:]
+        if samples:
+            # REP-103 (ENU attitude, FLU force) → NED kinematic acceleration, explicitly, for every sample at once
+            quats = [(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z) for m in samples]
+            forces = [(m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z) for m in samples]
+            for acc in kinematic_accel_ned(quats, forces, cfg.gravity_mps2):
+                self.ins.predict(acc)
         for fix in fixes:
             y = np.array(
                 geodetic_to_ned(

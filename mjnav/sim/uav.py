@@ -19,6 +19,7 @@ World frame ENU (MuJoCo z up), body FLU; the flight software's NED / FRD convers
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -147,16 +148,16 @@ class Wind:
         self._start = np.array(starts)
         self._dur = np.array(durations)
         self._dir = np.array(dirs).reshape(-1, 3)
+        self._start_list, self._dur_list = list(starts), list(durations)  # scalar look-ups in velocity()
 
     def velocity(self, t_s: float) -> np.ndarray:
         """(3,) wind velocity (ENU, m/s) at sim time ``t_s``."""
         w = self.mean.copy()
-        if self._start.size:
-            s = t_s - self._start
-            on = (s >= 0.0) & (s < self._dur)
-            if on.any():
-                amp = 0.5 * self.gust_mps * (1.0 - np.cos(2.0 * math.pi * s[on] / self._dur[on]))
-                w += amp @ self._dir[on]
+        i = bisect.bisect_right(self._start_list, t_s) - 1  # gusts never overlap: the latest started is the one
+        if i >= 0:
+            s, dur = t_s - self._start_list[i], self._dur_list[i]
+            if s < dur:
+                w += 0.5 * self.gust_mps * (1.0 - math.cos(2.0 * math.pi * s / dur)) * self._dir[i]
         return w
 
 

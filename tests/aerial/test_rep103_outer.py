@@ -20,7 +20,29 @@ from mjnav.aerial import (
     rpt_poles,
 )
 from mjnav.aerial.outer import hinf_outer_gains, lqr_outer_gains, outer_plant, pid_outer_gains
-from mjnav.aerial.rep103 import enu_to_ned, flu_to_frd, ned_to_enu, quat_enu_flu_to_ned_frd, quat_ned_frd_to_enu_flu
+from mjnav.aerial.rep103 import (
+    enu_to_ned,
+    flu_to_frd,
+    kinematic_accel_ned,
+    ned_to_enu,
+    quat_enu_flu_to_ned_frd,
+    quat_ned_frd_to_enu_flu,
+)
+
+
+def test_kinematic_accel_ned_matches_converting_each_sample_to_ned_frd() -> None:
+    rng = np.random.default_rng(4)
+    quats = rng.normal(size=(6, 4))
+    quats /= np.linalg.norm(quats, axis=1)[:, None]
+    forces = rng.normal(size=(6, 3)) * 5.0
+    got = kinematic_accel_ned(quats * 2.0, forces, 9.81)  # the attitudes are normalised first
+    for q, f, a in zip(quats, forces, got, strict=True):
+        expected = quat_to_rotation(quat_enu_flu_to_ned_frd(q)) @ flu_to_frd(f) + [0.0, 0.0, 9.81]
+        np.testing.assert_allclose(a, expected, atol=1e-12)
+    level = kinematic_accel_ned([[1.0, 0.0, 0.0, 0.0]], [[0.0, 0.0, 9.81]], 9.81)  # at rest: no acceleration
+    np.testing.assert_allclose(level, [[0.0, 0.0, 0.0]], atol=1e-12)
+    with pytest.raises(ValueError, match="as many"):
+        kinematic_accel_ned(quats, forces[:2], 9.81)
 
 
 def test_enu_ned_and_flu_frd_swap_axes() -> None:

@@ -6,8 +6,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import pytest
 
 from mjnav.bus import Bus
+from mjnav.msgs import ros
 from mjnav.msgs import uav as uav_msgs
 from mjnav.services.flight_controller import FlightControllerService
 from tests.services.harness import Harness
@@ -76,3 +78,24 @@ def test_arm_false_lands_a_flying_vehicle_and_disarms_a_landed_one(peer: Callabl
     h.send("arm", uav_msgs.boolean(False))
     h.step(0.10)
     assert fc.state == "landing"
+
+
+def test_a_peers_output_of_the_same_step_waits_for_the_next_step(peer: Callable[..., Bus]) -> None:
+    # In lockstep the INS's estimate and the flight client's trajectory of step t reach the controller before or
+    # after clock t as the router happens to schedule them; a step at t must use what was made before t.
+    h = Harness(FlightControllerService, peer, ("flight_state",), rate_hz=50.0, state_source="ins")
+    fc = h.service
+    h.send("imu", ros.imu(0.0, "imu", [0.0, 0.0, 0.0, 1.0], [0.0] * 3, [0.0, 0.0, 9.81]))
+    h.send("ins_odom", _mocap(0.04, 0.062))  # made at the step at 0.04 s
+    h.send("ins_odom", _mocap(0.06, 1.0))  # the INS's step at 0.06 s, arrived before the clock
+    h.step(0.06)
+    assert fc.x is not None and fc.x[2] == pytest.approx(-0.062)  # NED down of the 0.04 s estimate
+    h.send("arm", uav_msgs.boolean(True))
+    h.step(0.08)
+    assert fc.x[2] == pytest.approx(-1.0)  # now the 0.06 s estimate
+    assert fc.state == "armed"
+    h.send("trajectory", uav_msgs.trajectory("map", [0.2, 1.0], [[0.0, 0.0, 1.0], [0.0, 0.0, 1.5]], t_s=0.1))
+    h.step(0.1)  # the flight client's trajectory of this step: not yet
+    assert fc.state == "armed"
+    h.step(0.12)
+    assert fc.state == "offboard"
