@@ -69,6 +69,8 @@ PRELOAD_MODULES = ("mjnav.cli", "mjnav.commands.stack", "mjnav.runtime.runner", 
 
 #: prctl option: the signal a process gets when its parent dies (linux/prctl.h).
 _PR_SET_PDEATHSIG = 1
+#: prctl option: the calling thread's name (``comm``, 15 bytes), which ps and top show (linux/prctl.h).
+_PR_SET_NAME = 15
 
 
 def _prime_numba() -> None:
@@ -77,6 +79,12 @@ def _prime_numba() -> None:
     import numba
 
     numba.njit(lambda: 0)()
+
+
+def _name_process(name: str) -> None:
+    """Name this process ``name`` in ps/top (``comm``; Linux; elsewhere a no-op)."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None).prctl(_PR_SET_NAME, name.encode()[:15])
 
 
 def _die_with_parent(parent_pid: int) -> Callable[[], None]:
@@ -462,6 +470,7 @@ class Launcher:
                         os.close(pipe.fileno())
                 os.setsid()  # Ctrl-C reaches the launcher only; it stops the services in order
                 _die_with_parent(parent)()
+                _name_process(f"mjnav-{spec.name}")  # its command line is still the launcher's
                 os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
                 os.dup2(out_write, 1)
                 os.dup2(out_write, 2)
