@@ -471,7 +471,9 @@ class Launcher:
                 os.setsid()  # Ctrl-C reaches the launcher only; it stops the services in order
                 _die_with_parent(parent)()
                 _name_process(f"mjnav-{spec.name}")  # its command line is still the launcher's
-                os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+                devnull = os.open(os.devnull, os.O_RDONLY)
+                os.dup2(devnull, 0)
+                os.close(devnull)
                 os.dup2(out_write, 1)
                 os.dup2(out_write, 2)
                 os.close(out_write)
@@ -494,8 +496,9 @@ class Launcher:
 
                 traceback.print_exc()
             finally:
-                sys.stdout.flush()
-                sys.stderr.flush()
+                for stream in (sys.stdout, sys.stderr):
+                    with contextlib.suppress(BaseException):  # nothing may keep it from exiting here
+                        stream.flush()
                 os._exit(code)
         os.close(out_write)
         return _ForkedProcess(pid, open(out_read, encoding="utf-8", errors="replace"))
