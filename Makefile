@@ -1,7 +1,8 @@
 # mjnav: two commands for a fresh Debian machine with Python >= 3.11.
 #   make demo   set up, then run the product
 #   make test   set up, then lint, type-check and run every test
-# Set-up is idempotent: .venv is created or updated when pyproject.toml changes, and the Debian packages
+# Set-up is idempotent: .venv is created or updated when pyproject.toml changes, numba kernels are compiled into
+# their caches (mjnav warmup), and the Debian packages
 # needed for offscreen rendering are installed when missing (apt-get as root; otherwise the names are printed).
 
 SHELL := /bin/bash
@@ -20,7 +21,7 @@ DEMO_WORLD ?= rooms
 DEMO_RTF ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: demo test setup system-deps test-deps lint bench clean
+.PHONY: demo test setup warmup system-deps test-deps lint bench clean
 
 # The mission: the robot maps the world from scratch and drives to its goal; video, map and summary in runs/.
 demo: setup
@@ -36,7 +37,12 @@ lint: setup
 	$(BIN)/ruff format --check mjnav tests benchmarks examples
 	$(BIN)/mypy mjnav examples
 
-setup: system-deps $(STAMP)
+setup: system-deps $(STAMP) warmup
+
+# numba caches: every kernel compiled once here (a few minutes on a fresh install, seconds afterwards; a kernel whose
+# module changed is compiled again), so no service compiles while the stack starts.
+warmup: $(STAMP)
+	$(BIN)/mjnav warmup --quiet
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \

@@ -172,10 +172,24 @@ class Publisher:
         self._pub.undeclare()
 
 
+#: Samples a lossy subscription holds between two reads on an event topic (or a wildcard); a snapshot topic holds
+#: only the newest. Older ones are dropped when it is full.
+LOSSY_CAPACITY = 256
+#: Wall seconds between two looks at a lossy subscription's ring buffer in :meth:`Subscription.wait`.
+LOSSY_POLL_S = 0.01
+
+
 class Subscription:
     """Receives one topic (or a wildcard over per-service topics), decoded and validated.
 
     Snapshot topics keep only the newest message per key; event topics queue every message until drained.
+
+    A ``lossy`` subscription (an observer outside the loop, such as the viewer) can never hold its publishers
+    back: Zenoh puts its samples in a ring buffer without waiting for this process (the oldest are dropped when it
+    is full: :data:`LOSSY_CAPACITY`, one for a snapshot topic), and they are decoded only when read
+    (:meth:`take`, :meth:`drain`, :meth:`latest`; a snapshot topic decodes only the newest). A subscriber whose
+    callback runs in Zenoh's thread instead makes the router wait for it when it falls behind — and with it the
+    publishers, whose samples are reliable and blocking (:func:`publisher_qos`).
     """
 
     def __init__(
@@ -185,7 +199,10 @@ class Subscription:
         key: str,
         callback: Callable[[Any], None] | None,
         immediate: bool = False,
+        lossy: bool = False,
     ) -> None:
+        if lossy and callback is not None:
+            raise ValueError(f"{key}: a lossy subscription takes no callback (it is read with take/drain/latest)")
         self.topic = row
         self.key = key
         self._bus = bus
@@ -202,9 +219,16 @@ class Subscription:
         self._encoding = cdr_encoding(row.msgtype)
         self._decode = codec.decoder(row.msgtype)
         self._validate = validator(row.msgtype)
-        # In Zenoh's network thread (not the default thread per subscriber): samples are then handled in the order
-        # they arrived across all subscriptions of the session, which staged delivery relies on.
-        self._sub = bus.session.declare_subscriber(key, zenoh.handlers.Callback(self._on_sample, indirect=False))
+        self._lossy = lossy
+        self._sub: Any
+        if lossy:
+            newest_only = row.kind is Kind.SNAPSHOT and not self._wildcard
+            capacity = 1 if newest_only else LOSSY_CAPACITY
+            self._sub = bus.session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity))
+        else:
+            # In Zenoh's network thread (not the default thread per subscriber): samples are then handled in the
+            # order they arrived across all subscriptions of the session, which staged delivery relies on.
+            self._sub = bus.session.declare_subscriber(key, zenoh.handlers.Callback(self._on_sample, indirect=False))
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         if self._bus.closing:
@@ -249,18 +273,28 @@ class Subscription:
             except Exception:
                 log.exception("callback for %s failed", key)
 
+    def _pull(self) -> None:
+        """A lossy subscription: decode and deliver what its ring buffer holds (in arrival order)."""
+        if not self._lossy:
+            return
+        while (sample := self._sub.try_recv()) is not None:
+            self._on_sample(sample)
+
     def latest(self) -> Any:
         """The newest message received (``None`` before the first)."""
+        self._pull()
         with self._cond:
             return self._latest
 
     def latest_by_key(self) -> dict[str, Any]:
         """Newest message per concrete key (useful on wildcard subscriptions such as ``status/*``)."""
+        self._pull()
         with self._cond:
             return dict(self._by_key)
 
     def take(self) -> Any:
         """The newest message if one arrived since the last ``take``, else ``None``."""
+        self._pull()
         with self._cond:
             if not self._fresh:
                 return None
@@ -272,6 +306,7 @@ class Subscription:
 
         Subscriptions with a callback hand every event to it and queue nothing.
         """
+        self._pull()
         with self._cond:
             items = list(self._queue)
             self._queue.clear()
@@ -281,14 +316,18 @@ class Subscription:
     def wait(self, timeout_s: float, predicate: Callable[[Any], bool] | None = None) -> Any:
         """Wait until a message arrives (that satisfies ``predicate``, when given); returns it or ``None``.
 
-        Only messages arriving after the call count, unless ``predicate`` already holds for the newest one.
+        Only messages arriving after the call count, unless ``predicate`` already holds for the newest one. A
+        lossy subscription looks at its ring buffer every :data:`LOSSY_POLL_S` (nothing signals an arrival there).
         """
         deadline = time.monotonic() + timeout_s
+        self._pull()
         with self._cond:
             if predicate is not None and self._latest is not None and predicate(self._latest):
                 return self._latest
             seen = self.count
-            while True:
+        while True:
+            self._pull()
+            with self._cond:
                 if self.count != seen:
                     seen = self.count
                     if predicate is None or predicate(self._latest):
@@ -298,7 +337,7 @@ class Subscription:
                     return None
                 self._waiters += 1
                 try:
-                    self._cond.wait(remaining)
+                    self._cond.wait(min(remaining, LOSSY_POLL_S) if self._lossy else remaining)
                 finally:
                     self._waiters -= 1
 
@@ -467,6 +506,7 @@ class Bus:
         callback: Callable[[Any], None] | None = None,
         service: str | None = None,
         immediate: bool = False,
+        lossy: bool = False,
     ) -> Subscription:
         """Subscribe to topic ``name``.
 
@@ -475,11 +515,13 @@ class Bus:
             callback: optional function called (in Zenoh's thread) with each accepted message.
             service: the service of a per-service topic (``"*"`` for all).
             immediate: deliver at once even when the bus is :attr:`staged` (the clock itself, barrier reports).
+            lossy: for observers outside the lockstep loop (the viewer): never hold publishers back, at the price of
+                messages dropped while the reader falls behind (see :class:`Subscription`); no ``callback``.
         """
         row = topic(name)
         if row.kind is Kind.EVENT and self.owner is not None:
             self._receipt_publisher()  # declared now, routed by the time the first receipt goes out
-        sub = Subscription(self, row, row.key(self.namespace, service), callback, immediate)
+        sub = Subscription(self, row, row.key(self.namespace, service), callback, immediate, lossy)
         self._declared.append(sub)
         return sub
 

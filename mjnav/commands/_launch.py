@@ -21,6 +21,9 @@ def run_beside_launcher(
 ) -> T | None:
     """Run ``launcher`` (router and services) in a daemon thread and ``client(bus)`` on a bus connected to it.
 
+    The services are forked from this process first (:meth:`~mjnav.runtime.launcher.Launcher.spawn`), before its
+    client's bus opens.
+
     The launcher is stopped (and its thread joined, up to 60 s) whatever happens. Ctrl-C, ``RuntimeError`` and
     ``TimeoutError`` from the client are reported on stderr as ``mjnav <command>: …`` and give ``None``.
 
@@ -33,8 +36,12 @@ def run_beside_launcher(
     """
     from mjnav.bus import Bus
 
+    # The services' first processes are forked from this one while it has no thread and no Zenoh session yet.
+    launcher.fork_services = True
+    launcher.spawn()
     thread = threading.Thread(target=lambda: launcher.run(install_signals=False), daemon=True)
     thread.start()
+    launcher.router_ready.wait(60.0)  # connecting before it listens would wait out Zenoh's retry period (1 s)
     try:
         with Bus.open(bus_config, namespace) as bus:
             return client(bus)

@@ -184,6 +184,7 @@ def run_up(args: argparse.Namespace) -> int:
             seed=args.seed,
             hung_timeout_s=args.hung_timeout,
             secure=args.secure,
+            fork_services=True,
         )
         launcher.check()
     except (ConfigError, BusConfigError, AclError, ValueError) as exc:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 from mjnav.estimation.errors import InvalidMeasurement, InvalidModel, NotPositiveDefinite
 
@@ -63,7 +63,8 @@ def chi2_gate(probability: float, dof: int) -> float:
     """
     if not (0.0 < probability < 1.0) or dof < 1:
         raise InvalidModel(f"need 0 < probability < 1 and dof >= 1, got ({probability}, {dof})")
-    return float(chi2.ppf(probability, dof))
+    # chi2.ppf(p, k) = 2 gammaincinv(k/2, p), as scipy.stats computes it (without importing scipy.stats: ~0.5 s)
+    return float(2.0 * gammaincinv(0.5 * dof, probability))
 
 
 def _wrap(nu: FloatArray, angle_dims: Sequence[int]) -> FloatArray:

@@ -14,7 +14,7 @@ from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 from mjnav.estimation.association import Association
 from mjnav.estimation.errors import InvalidModel
@@ -239,7 +239,8 @@ def pose_nees(true_pose: ArrayLike, pose: ArrayLike, covariance: ArrayLike) -> f
 
 def nees_bounds(dof: int, runs: int, probability: float = 0.95) -> tuple[float, float]:
     """Two-sided ``probability`` interval of the average NEES over ``runs`` Monte Carlo runs (χ²_{dof·runs} / runs)."""
-    lo, hi = chi2.ppf([(1.0 - probability) / 2.0, (1.0 + probability) / 2.0], dof * runs)
+    # chi2.ppf(p, k) = 2 gammaincinv(k/2, p), as scipy.stats computes it (without importing scipy.stats: ~0.5 s)
+    lo, hi = 2.0 * gammaincinv(0.5 * dof * runs, [(1.0 - probability) / 2.0, (1.0 + probability) / 2.0])
     return float(lo) / runs, float(hi) / runs
 
 

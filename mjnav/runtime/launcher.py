@@ -8,15 +8,24 @@ heartbeat (``<ns>/status/<name>``, every wall second) stopped for ``hung_timeout
 vanished — which is killed first. On SIGINT/SIGTERM, or after ``duration_s``, the
 services are stopped in reverse start order (SIGTERM, then SIGKILL after a grace period) and the launcher
 returns 0; a second signal kills everything at once.
+
+Start-up: with ``fork_services`` (``mjnav up``, ``mjnav demo``, ``mjnav fly``) the launcher imports what every
+service needs once (:data:`PRELOAD_MODULES`, the service classes, numba's compiler target) and forks each service's
+first process from itself, before it opens any Zenoh session or starts a thread; the children then skip the
+interpreter start, the imports and numba's set-up (most of a service's start-up). A restart always executes a fresh
+``python -m mjnav run <name>``: once the router runs, the launcher holds Zenoh's threads, which a fork must not copy.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import importlib
 import json
 import logging
 import math
 import os
+import select
 import shutil
 import signal
 import socket
@@ -29,7 +38,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from types import FrameType
-from typing import IO, Any
+from typing import IO, Any, Protocol
 
 from mjnav.bus import Bus, BusConfig, BusUnavailable
 from mjnav.bus.acl import secure_router_config
@@ -53,8 +62,29 @@ FIRST_STEP_TIMEOUT_S = 120.0
 WORLD_MARGIN_M = 1.0
 
 
+#: Modules every forked service needs besides its own class (imported once by the launcher, see ``fork_services``):
+#: the command line and the runner the child runs, and the packages services import lazily in ``configure``.
+PRELOAD_MODULES = ("mjnav.cli", "mjnav.commands.stack", "mjnav.runtime.runner", "mjnav.sim", "mjnav.viz", "numba")
+
+
 #: prctl option: the signal a process gets when its parent dies (linux/prctl.h).
 _PR_SET_PDEATHSIG = 1
+#: prctl option: the calling thread's name (``comm``, 15 bytes), which ps and top show (linux/prctl.h).
+_PR_SET_NAME = 15
+
+
+def _prime_numba() -> None:
+    """Set up numba's compiler target (its registries: most of the cost of a process's first kernel call, even when
+    the kernel comes from the cache) by compiling a trivial function, so forked services inherit it."""
+    import numba
+
+    numba.njit(lambda: 0)()
+
+
+def _name_process(name: str) -> None:
+    """Name this process ``name`` in ps/top (``comm``; Linux; elsewhere a no-op)."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None).prctl(_PR_SET_NAME, name.encode()[:15])
 
 
 def _die_with_parent(parent_pid: int) -> Callable[[], None]:
@@ -72,10 +102,85 @@ def _die_with_parent(parent_pid: int) -> Callable[[], None]:
     return preexec
 
 
+class _Process(Protocol):
+    """What the launcher needs of a service process: a :class:`subprocess.Popen` or a :class:`_ForkedProcess`."""
+
+    pid: int
+    returncode: int | None
+    stdout: IO[str] | None
+
+    def poll(self) -> int | None: ...
+
+    def wait(self, timeout: float | None = None) -> int: ...
+
+    def send_signal(self, sig: int) -> None: ...
+
+    def kill(self) -> None: ...
+
+
+class _ForkedProcess:
+    """A service process forked from the launcher, with the part of :class:`subprocess.Popen`'s interface the
+    launcher uses.
+
+    Args:
+        pid: the child's process id.
+        stdout: read end of the pipe the child's stdout and stderr go to.
+    """
+
+    def __init__(self, pid: int, stdout: IO[str]) -> None:
+        self.pid = pid
+        self.stdout: IO[str] | None = stdout
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        """The exit code once the child exited (it is reaped then), else None."""
+        if self.returncode is None:
+            try:
+                pid, status = os.waitpid(self.pid, os.WNOHANG)
+            except ChildProcessError:  # reaped elsewhere: its code is lost
+                self.returncode = -1
+                return self.returncode
+            if pid == self.pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        """Wait for the child to exit; its exit code (negative: the signal that ended it).
+
+        Raises:
+            subprocess.TimeoutExpired: still running after ``timeout`` seconds.
+        """
+        if self.poll() is not None:
+            return self.returncode  # type: ignore[return-value]
+        if timeout is None:
+            _, status = os.waitpid(self.pid, 0)
+            self.returncode = os.waitstatus_to_exitcode(status)
+            return self.returncode
+        fd = os.pidfd_open(self.pid)  # readable once the child exits: no polling loop
+        try:
+            if not select.select([fd], [], [], timeout)[0]:
+                raise subprocess.TimeoutExpired(f"pid {self.pid}", timeout)
+        finally:
+            os.close(fd)
+        code = self.poll()
+        assert code is not None
+        return code
+
+    def send_signal(self, sig: int) -> None:
+        """Send ``sig`` unless the child was reaped (its pid may belong to another process by then)."""
+        if self.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, sig)
+
+    def kill(self) -> None:
+        """SIGKILL."""
+        self.send_signal(signal.SIGKILL)
+
+
 @dataclass
 class _Child:
     spec: ServiceSpec
-    proc: subprocess.Popen[str] | None = None
+    proc: _Process | None = None
     restarts: int = 0
     restart_at: float | None = None
     gave_up: bool = False
@@ -107,6 +212,9 @@ class Launcher:
         secure: folder of ``mjnav certs`` certificates: the router listens on ``tls/127.0.0.1:<port>`` with mutual
             TLS and the stack's access control (:mod:`mjnav.bus.acl`); each service connects with its own
             certificate. None: plain TCP on loopback, no access control.
+        fork_services: start each service's first process by forking this one after importing what the services
+            need (see the module's docs). Only for a process that has not opened a Zenoh session and runs no other
+            threads when :meth:`spawn` (or :meth:`run`) forks: the launcher of ``mjnav up``, ``mjnav demo``.
     """
 
     def __init__(
@@ -125,6 +233,7 @@ class Launcher:
         seed: int | None = None,
         hung_timeout_s: float = HUNG_TIMEOUT_S,
         secure: str | Path | None = None,
+        fork_services: bool = False,
     ) -> None:
         if not hung_timeout_s > 0:
             raise ValueError(f"hung_timeout_s must be > 0, got {hung_timeout_s}")
@@ -145,6 +254,12 @@ class Launcher:
         self._alive: set[str] = set()
         self._lock = threading.Lock()  # child heartbeat fields, written from Zenoh callbacks
         self.state_dir: str | None = None  # this run's checkpoints (see Service.state_dir), while running
+        self.fork_services = fork_services
+        self._spawned = False
+        self._go_write: int | None = None  # the forked services start when it is closed (see spawn)
+        #: Set once :meth:`run` opened the router (or failed to): a client may connect then without waiting out
+        #: Zenoh's connect retry period.
+        self.router_ready = threading.Event()
         self.secure = Path(secure) if secure is not None else None
         if self.secure is not None:
             for spec in self.specs:
@@ -281,6 +396,7 @@ class Launcher:
         return env
 
     def _start(self, child: _Child) -> None:
+        """Start ``child`` as a fresh ``python -m mjnav run`` (a restart, or every start without ``fork_services``)."""
         proc = subprocess.Popen(
             self._command(child.spec),
             stdout=subprocess.PIPE,
@@ -288,10 +404,16 @@ class Launcher:
             stdin=subprocess.DEVNULL,
             text=True,
             bufsize=1,
-            env={**self._env(), **(tls_env(self.secure, child.spec.name) if self.secure is not None else {})},
+            env=self._child_env(child.spec),
             start_new_session=True,  # Ctrl-C reaches the launcher only; it stops the services in order
             preexec_fn=_die_with_parent(os.getpid()),
         )
+        self._started(child, proc)
+
+    def _child_env(self, spec: ServiceSpec) -> dict[str, str]:
+        return {**self._env(), **(tls_env(self.secure, spec.name) if self.secure is not None else {})}
+
+    def _started(self, child: _Child, proc: _Process) -> None:
         with self._lock:
             child.proc = proc
             child.last_status = None
@@ -302,7 +424,86 @@ class Launcher:
         child.pumps.append(pump)
         log.info("started %s (pid %d)", child.spec.name, proc.pid)
 
-    def _pump(self, name: str, proc: subprocess.Popen[str]) -> None:
+    def spawn(self) -> None:
+        """Fork every service's first process (with ``fork_services``; otherwise :meth:`run` starts them).
+
+        Imports what the services need, sets up numba's compiler target once, then forks one child per service,
+        each held until :meth:`run` has the router listening (so none waits out Zenoh's connect retry period).
+        Call it before this process opens a Zenoh session or starts a thread (``mjnav demo`` calls it before its
+        own client connects); :meth:`run` calls it when nobody did. Idempotent.
+        """
+        if self._spawned or not self.fork_services:
+            return
+        self._spawned = True
+        for name in PRELOAD_MODULES:
+            importlib.import_module(name)
+        for spec in self.specs:
+            spec.load_class()
+        _prime_numba()
+        self.state_dir = tempfile.mkdtemp(prefix="mjnav-state-")
+        go_read, self._go_write = os.pipe()
+        forked: list[tuple[_Child, _ForkedProcess]] = []
+        for child in self.children:
+            forked.append((child, self._fork(child.spec, go_read, [proc.stdout for _, proc in forked])))
+        os.close(go_read)
+        for child, proc in forked:  # threads only once every fork is done
+            self._started(child, proc)
+
+    def _fork(self, spec: ServiceSpec, go: int, siblings: list[IO[str] | None]) -> _ForkedProcess:
+        """Fork the process of ``spec``: it runs ``mjnav run`` (as :meth:`_command` says) once ``go``'s write end
+        is closed; ``siblings``: the output pipes of the services forked before (their ends are closed in it)."""
+        argv = self._command(spec)[3:]  # after "python -m mjnav"
+        env = self._child_env(spec)
+        out_read, out_write = os.pipe()
+        parent = os.getpid()
+        for stream in (sys.stdout, sys.stderr, self.out):
+            stream.flush()  # nothing buffered here is written twice
+        pid = os.fork()
+        if pid == 0:  # the service's process: never returns
+            code = 1
+            try:
+                os.close(out_read)
+                assert self._go_write is not None
+                os.close(self._go_write)  # only the launcher may hold it: its closing is the start signal
+                for pipe in siblings:
+                    if pipe is not None:
+                        os.close(pipe.fileno())
+                os.setsid()  # Ctrl-C reaches the launcher only; it stops the services in order
+                _die_with_parent(parent)()
+                _name_process(f"mjnav-{spec.name}")  # its command line is still the launcher's
+                devnull = os.open(os.devnull, os.O_RDONLY)
+                os.dup2(devnull, 0)
+                os.close(devnull)
+                os.dup2(out_write, 1)
+                os.dup2(out_write, 2)
+                os.close(out_write)
+                sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115
+                sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115
+                for signum in (signal.SIGINT, signal.SIGTERM):
+                    signal.signal(signum, signal.SIG_DFL)
+                os.environ.clear()
+                os.environ.update(env)
+                while os.read(go, 1):  # EOF: the router listens (or the launcher is gone)
+                    pass
+                os.close(go)
+                from mjnav.cli import main
+
+                code = main(argv)
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else 1
+            except BaseException:
+                import traceback
+
+                traceback.print_exc()
+            finally:
+                for stream in (sys.stdout, sys.stderr):
+                    with contextlib.suppress(BaseException):  # nothing may keep it from exiting here
+                        stream.flush()
+                os._exit(code)
+        os.close(out_write)
+        return _ForkedProcess(pid, open(out_read, encoding="utf-8", errors="replace"))
+
+    def _pump(self, name: str, proc: _Process) -> None:
         assert proc.stdout is not None
         for line in proc.stdout:
             with self._out_lock:
@@ -361,7 +562,7 @@ class Launcher:
         )
         child.restart_at = now + delay
 
-    def _check_hung(self, child: _Child, proc: subprocess.Popen[str], now: float) -> None:
+    def _check_hung(self, child: _Child, proc: _Process, now: float) -> None:
         """Kill a running service that stopped answering (the next :meth:`_supervise` restarts it): its status
         heartbeat is older than :attr:`hung_timeout_s`, or its liveliness token went away. A process that has not
         sent its first status yet is starting (imports, compilation) and is left alone."""
@@ -409,6 +610,37 @@ class Launcher:
                 ", ".join(c.spec.name for c in self.children),
             )
 
+    def _open_router(self) -> Bus:
+        """The router's session. Zenoh holds ``open`` back for its scouting delay (500 ms by default) to discover
+        peers first; the router has none to discover (multicast scouting is off, it connects nowhere), so the
+        delay is 0.
+
+        Raises:
+            BusUnavailable: the listen port cannot be bound.
+        """
+        import zenoh
+
+        config = self._router_config.to_zenoh()
+        config.insert_json5("scouting/delay", "0")
+        try:
+            session = zenoh.open(config)
+        except zenoh.ZError as exc:
+            raise BusUnavailable(f"cannot open a Zenoh router session on {self.endpoint}: {exc}") from exc
+        return Bus(session, self.namespace, owns_session=True)
+
+    def _release(self) -> None:
+        """Let the forked services go on (they wait for the router)."""
+        if self._go_write is not None:
+            os.close(self._go_write)
+            self._go_write = None
+
+    def _stop_all(self) -> None:
+        for child in reversed(self.children):
+            self._stop_child(child)
+        if self.state_dir is not None:
+            shutil.rmtree(self.state_dir, ignore_errors=True)
+            self.state_dir = None
+
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         self._signals += 1
         if self._signals > 1:
@@ -429,19 +661,27 @@ class Launcher:
         if install_signals:
             signal.signal(signal.SIGINT, self._on_signal)
             signal.signal(signal.SIGTERM, self._on_signal)
+        self.spawn()
         try:
-            router = Bus.open(self._router_config, self.namespace)
+            router = self._open_router()
         except BusUnavailable as exc:
             log.error("cannot start the router: %s (port %d in use? use --port)", exc, self.port)
+            self._stop_all()
+            self._release()
             return 2
+        finally:
+            self.router_ready.set()
         log.info("zenoh router on %s; namespace %s", self.endpoint, self.namespace)
-        self.state_dir = tempfile.mkdtemp(prefix="mjnav-state-")
+        if self.state_dir is None:
+            self.state_dir = tempfile.mkdtemp(prefix="mjnav-state-")
         deadline = None if self.duration_s is None else time.monotonic() + self.duration_s
         try:
             router.watch_alive(self._on_alive)
             router.subscribe("status", service="*", callback=self._on_status, immediate=True)
+            self._release()
             for child in self.children:
-                self._start(child)
+                if child.proc is None:
+                    self._start(child)
             while not self.stop_event.is_set():
                 if deadline is not None and time.monotonic() >= deadline:
                     log.info("duration of %.1f s reached: stopping the stack", self.duration_s)
@@ -450,11 +690,8 @@ class Launcher:
                     self._supervise(child)
                 self.stop_event.wait(0.1)
         finally:
-            for child in reversed(self.children):
-                self._stop_child(child)
+            self._stop_all()
             router.close()
-            shutil.rmtree(self.state_dir, ignore_errors=True)
-            self.state_dir = None
         failed = [c.spec.name for c in self.children if c.gave_up]
         if failed:
             log.error("service(s) given up after repeated crashes: %s", ", ".join(failed))

@@ -112,9 +112,12 @@ class VizService(Service[VizConfig]):
         self.view = NavView(self.scene, scan_point_size_m=cfg.scan_point_size_m, pose_topic=cfg.pose_topic)
         snapshots = [cfg.pose_topic, "scan", "map", "plan", "path", "obstacles"]
         snapshots += ["costmap"] if cfg.draw_costmap else []
-        self.snapshot_subs = {name: self.bus.subscribe(name) for name in snapshots}
-        self.event_subs = {name: self.bus.subscribe(name) for name in ("goal", "goal_status")}
-        self.sim_status = self.bus.subscribe("sim_status")
+        # Lossy: the viewer is outside the lockstep loop and must never hold a publisher back when it falls
+        # behind (a blocked router link stalls every service); it decodes only the newest message of each topic,
+        # when it draws.
+        self.snapshot_subs = {name: self.bus.subscribe(name, lossy=True) for name in snapshots}
+        self.event_subs = {name: self.bus.subscribe(name, lossy=True) for name in ("goal", "goal_status")}
+        self.sim_status = self.bus.subscribe("sim_status", lossy=True)
         self.world_name = ""
         self._failures: dict[str, int] = {}
 

@@ -89,13 +89,17 @@ class Scene:
         self._send("set_object", path, packed)
 
     def set_transform(self, path: str, matrix: ArrayLike) -> None:
-        """Set the (4, 4) homogeneous transform of ``path`` relative to its parent (metres)."""
+        """Set the (4, 4) homogeneous transform of ``path`` relative to its parent (metres); the same transform
+        again sends nothing."""
         parts = _parts(path)
         mat = np.asarray(matrix, dtype=np.float64)
         if mat.shape != (4, 4) or not np.all(np.isfinite(mat)):
             raise ValueError(f"transform of {path} must be a finite (4, 4) matrix, got shape {mat.shape}")
         packed = umsgpack.packb(SetTransform(mat, MeshcatPath(parts)).lower())
-        self._nodes.setdefault(parts, _Node()).transform = packed
+        node = self._nodes.setdefault(parts, _Node())
+        if node.transform == packed:
+            return  # unchanged (a robot standing still): nothing to send
+        node.transform = packed
         self._send("set_transform", path, packed)
 
     def set_property(self, path: str, name: str, value: Any) -> None:

@@ -146,6 +146,7 @@ class NavView:
         self._goal: Any = None
         self.trail: list[tuple[float, float]] = []  # driven trail, map frame, metres
         self.drawn: dict[str, int] = {}
+        self._shown: dict[str, Any] = {}  # per grid or path layer: what it shows now (a redraw of it is skipped)
 
     # ------------------------------------------------------------------------------------------------ set-up
 
@@ -234,8 +235,13 @@ class NavView:
         self._count("scan")
 
     def draw_grid(self, grid: Any, kind: str = "map") -> None:
-        """Show a nav_msgs/OccupancyGrid as a textured plane (``kind``: ``map`` or ``costmap``)."""
+        """Show a nav_msgs/OccupancyGrid as a textured plane (``kind``: ``map`` or ``costmap``); the grid already
+        shown is not drawn again."""
         info = grid.info
+        shown = (info.width, info.height, info.resolution, pose_msg_matrix(info.origin).tobytes(), bytes(grid.data))
+        if self._shown.get(kind) == shown:
+            return  # the same grid again (an unchanged map re-published): no new texture
+        self._shown[kind] = shown
         if info.width == 0 or info.height == 0:
             self.scene.delete(f"{ROOT}/{kind}")
             return
@@ -250,10 +256,14 @@ class NavView:
         self._count(kind)
 
     def draw_path(self, path_msg: Any, name: str = "path") -> None:
-        """Show a nav_msgs/Path (``name``: ``plan`` or ``path``) as a line through its poses plus vertex dots."""
+        """Show a nav_msgs/Path (``name``: ``plan`` or ``path``) as a line through its poses plus vertex dots; the
+        path already shown is not drawn again."""
         z, colour = (PLAN_Z_M, PLAN_COLOUR) if name == "plan" else (PATH_Z_M, PATH_COLOUR)
         node = f"{ROOT}/{name}"
         points = path_points(path_msg, z)
+        if name in self._shown and np.array_equal(self._shown[name], points):
+            return  # the same path again (the planner re-sends its plan every second)
+        self._shown[name] = points
         self.scene.delete(node)
         if points.shape[1] == 0:
             self._count(name)
