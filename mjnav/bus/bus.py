@@ -9,6 +9,7 @@ counted and logged with its key and the reason — it never reaches the service 
 from __future__ import annotations
 
 import logging
+import struct
 import threading
 import time
 import uuid
@@ -68,6 +69,11 @@ class NotDelivered(TimeoutError):
 
 #: Zenoh attachment prefix of an event sample that asks its subscribers for a delivery receipt.
 RECEIPT_REQUEST = b"receipt="
+#: Zenoh attachment prefix of a sample sent at a known sim time (:attr:`Bus.sim_time`): 8 bytes of a little-endian
+#: float64 follow (then, on an event sample, possibly a receipt request).
+SIM_TIME_TAG = b"t="
+_SIM_TIME = struct.Struct("<d")
+_TAG_LEN = len(SIM_TIME_TAG) + _SIM_TIME.size
 
 
 def cdr_encoding(msgtype: str) -> zenoh.Encoding:
@@ -145,10 +151,14 @@ class Publisher:
         while :meth:`Bus.close` undeclares everything must not fail on it)."""
         if self._bus.closing:
             return
-        if receipt_id is None:
-            self._pub.put(payload)
+        t = self._bus.sim_time
+        attachment = b"" if t is None else SIM_TIME_TAG + _SIM_TIME.pack(t)
+        if receipt_id is not None:
+            attachment += RECEIPT_REQUEST + receipt_id.encode()
+        if attachment:
+            self._pub.put(payload, attachment=attachment)
         else:
-            self._pub.put(payload, attachment=RECEIPT_REQUEST + receipt_id.encode())
+            self._pub.put(payload)
         self._bus._count_published()
 
     def wait_for_subscribers(self, timeout_s: float) -> bool:
@@ -248,13 +258,18 @@ class Subscription:
         if reason is not None:
             self._bus._reject(key, reason)
             return
+        attachment = b"" if sample.attachment is None else sample.attachment.to_bytes()
+        sent_at = None
+        if attachment.startswith(SIM_TIME_TAG) and len(attachment) >= _TAG_LEN:
+            sent_at = _SIM_TIME.unpack_from(attachment, len(SIM_TIME_TAG))[0]
+            attachment = attachment[_TAG_LEN:]
         if self._bus.staged and not self._immediate:
-            self._bus._stage(self, key, msg)
+            self._bus._stage(self, key, msg, sent_at)
         else:
             self._deliver(key, msg)
-        if self.topic.kind is Kind.EVENT and sample.attachment is not None:
+        if self.topic.kind is Kind.EVENT and attachment:
             # Queued for the service (or handed to its callback): confirm delivery when the publisher asked.
-            self._bus._send_receipt(key, sample.attachment.to_bytes())
+            self._bus._send_receipt(key, attachment)
 
     def _deliver(self, key: str, msg: Any) -> None:
         with self._cond:
@@ -369,9 +384,13 @@ class Bus:
         self.session = session
         #: Staged delivery (set by sim-time services): accepted messages wait until :meth:`commit`.
         self.staged = False
+        #: The sim time this bus's owner has reached (None: no sim time): the newest clock it committed (a sim-time
+        #: service) or published (the sim). Every sample it publishes carries it, so a staged subscriber delivers
+        #: the sample only at a later clock (see :meth:`commit`).
+        self.sim_time: float | None = None
         #: Set by :meth:`close`: samples still arriving are ignored and publishing does nothing.
         self.closing = False
-        self._staging: list[tuple[Subscription | None, str, Any]] = []
+        self._staging: list[tuple[Subscription | None, str, Any, float | None]] = []
         #: The service this bus belongs to (set by :class:`mjnav.runtime.Service`): it signs delivery receipts.
         self.owner: str | None = None
         self._receipt_pub: Publisher | None = None
@@ -432,9 +451,9 @@ class Bus:
             self.stats.last_rejection = f"{key}: {reason}"
         self._reject_log(key, reason)
 
-    def _stage(self, sub: Subscription, key: str, msg: Any) -> None:
+    def _stage(self, sub: Subscription, key: str, msg: Any, sent_at: float | None) -> None:
         with self._lock:
-            self._staging.append((sub, key, msg))
+            self._staging.append((sub, key, msg, sent_at))
 
     def _send_receipt(self, key: str, attachment: bytes) -> None:
         """Answer an event sample that asked for a receipt (only buses that belong to a service sign them)."""
@@ -463,21 +482,32 @@ class Bus:
         """
         with self._lock:
             if self.staged:
-                self._staging.append((None, "", action))
+                self._staging.append((None, "", action, None))
                 return
         action()
 
-    def commit(self) -> None:
-        """Deliver every staged message, in arrival order, to its subscription (and callback).
+    def commit(self, now: float | None = None) -> None:
+        """Deliver the staged messages, in arrival order, to their subscriptions (and callbacks).
 
         With :attr:`staged` set, accepted messages are held back until this call. A sim-time service commits when
-        a ``clock`` message arrives: Zenoh delivers one router link's samples in order, so a step at that time sees
-        exactly the messages that arrived before the clock — those its peers published before the sim advanced to
-        it — and none that peers publish while they step at the same time.
+        a ``clock`` message arrives (``now``: its time, which becomes :attr:`sim_time`), so a step at that time
+        sees the messages its peers published before the sim advanced to it, and none that peers publish while
+        they step at the same time. Those usually arrive after the clock; but the router forwards clock t to each
+        subscriber in turn, and a peer that got it first may step and publish before this subscriber's copy of
+        the clock goes out (seen under load: a same-seed mission changed). So a message sent at sim time ``now``
+        or later (its :data:`SIM_TIME_TAG`) stays staged for a later commit, whatever the order of arrival.
         """
         with self._lock:
-            staged, self._staging = self._staging, []
-        for sub, key, msg in staged:
+            back = now is not None and self.sim_time is not None and now < self.sim_time  # the sim restarted
+            if now is not None:
+                self.sim_time = now
+            staged = self._staging
+            if now is None or back:  # after a restart, what was sent before it is old, not early: deliver it
+                self._staging = []
+            else:
+                self._staging = [item for item in staged if item[3] is not None and item[3] >= now]
+                staged = [item for item in staged if item[3] is None or item[3] < now]
+        for sub, key, msg, _ in staged:
             if sub is None:
                 try:
                     msg()  # a deferred action (see defer)

@@ -59,7 +59,7 @@ class LockstepParticipant:
             if t > self._now + MAX_CLOCK_JUMP_S:  # forged or corrupt: the services drop it too
                 self.rejected_clocks += 1
                 return
-        self.bus.commit()  # what arrived before this clock: measurements and statuses up to t
+        self.bus.commit(t)  # what was sent before this clock: measurements and statuses up to t
         with self._lock:
             if not t >= self._now:  # the first clock, or the sim restarted
                 self._next_tick = t

@@ -104,7 +104,7 @@ class _SimClock:
                         self._now, t, self._bus.key("clock"), self.rejected_jumps, MAX_CLOCK_JUMP_S,
                     )  # fmt: skip
                 return
-        self._bus.commit()
+        self._bus.commit(t)
         with self._cond:
             back = t < self._now
             if back:

@@ -174,6 +174,7 @@ class SimBridge:
     def __init__(self, sim: Any, bus: Bus, config: SimConfig) -> None:
         self.sim = sim
         self.config = config
+        self._bus = bus
         self._cmd = bus.subscribe("cmd_vel")
         self._teleop = bus.subscribe("cmd_vel_teleop")
         self._teleop_t = -math.inf  # sim time of the newest teleop command
@@ -305,9 +306,11 @@ class SimBridge:
                     t, "imu", reading.orientation_xyzw, reading.angular_velocity_radps, reading.linear_acceleration_mps2
                 )
             )
-        # The clock goes last: a service that sees clock t has received every message stamped up to t.
+        # The clock goes last: a service that sees clock t has received every message stamped up to t. What the
+        # sim publishes after it is marked as sent at t (Bus.sim_time): it belongs to a later step.
         if clock_due:
             self._pub["clock"].put(ros.clock(t))
+            self._bus.sim_time = t
 
 
 class SimService(Service[SimConfig]):

@@ -119,6 +119,7 @@ class UavBridge:
         self.sim = sim
         self.config = config
         self.recorder = recorder
+        self._bus = bus
         self._cmd = bus.subscribe("rotor_cmd")
         self._pub = {
             name: bus.publisher(name) for name in ("clock", "imu", "gps", "baro", "mocap", "ground_truth", "sim_status")
@@ -255,6 +256,7 @@ class UavBridge:
         if self._clock.due(t):
             self._put("clock", ros.clock(t))
             self._flush()
+            self._bus.sim_time = t  # what follows belongs to a later step (see Bus.commit)
 
 
 class UavSimService(SimService):

@@ -133,3 +133,34 @@ def test_namespaces_do_not_mix(peer: Peer) -> None:
     # Events are reliable and ordered per publisher: had robot1's goal leaked into robot2, it would be queued too.
     assert [m.pose.position.x for m in sub2.drain()] == [2.0]
     assert [m.pose.position.x for m in sub1.drain()] == [1.0]
+
+
+def test_a_staged_bus_delivers_a_message_only_at_a_clock_after_it_was_sent(peer: Peer) -> None:
+    """A peer's output of its step at t reaches a subscriber before that subscriber's copy of clock t, sometimes
+    (the router forwards the clock to each subscriber in turn): it must not be seen by the step at t."""
+    a, b = peer(), peer()
+    b.staged = True
+    twist = b.subscribe("cmd_vel")
+    marker = b.subscribe("goal", immediate=True)  # sent after each twist on the same link: the twist is in
+    pub, mark = a.publisher("cmd_vel"), a.publisher("goal")
+    assert pub.wait_for_subscribers(5.0) and mark.wait_for_subscribers(5.0)
+
+    def send(v: float, sim_time: float | None) -> None:
+        a.sim_time = sim_time
+        count = marker.count
+        pub.put(ros.twist(v, 0.0))
+        mark.put(ros.pose_stamped(0.0, "map", Pose2D(0.0, 0.0, 0.0)))
+        assert wait_until(lambda: marker.count > count, 5.0)
+
+    send(0.3, 1.0)  # sent by a peer stepping at t = 1.0
+    b.commit(1.0)
+    assert twist.take() is None  # not for the step at 1.0 ...
+    b.commit(1.05)
+    assert twist.take().linear.x == 0.3  # ... but for the next one
+    assert b.sim_time == 1.05
+    send(0.4, None)  # no sim time (an operator's command): at the next clock
+    b.commit(1.1)
+    assert twist.take().linear.x == 0.4
+    send(0.5, 7.0)  # sent before the sim restarted (the clock went back): old, not early
+    b.commit(0.0)
+    assert twist.take().linear.x == 0.5
