@@ -134,6 +134,7 @@ class MapperService(Service[MapperConfig]):
         self.costmap_pub = self.bus.publisher("costmap")
         self.obstacles: Any = np.zeros((0, 2))  # the obstacle layer: newest scan's static returns in map, (M, 2)
         self.tracked: TrackedScan | None = None  # the previous scan, for its returns' motion
+        self.tracking = TrackingParams(moving_speed_mps=cfg.moving_speed_mps)
         self._centres: Any = None  # (H·W, 2) map-frame cell centres of the grid (slam mode, computed once)
         self.bus.serve("save_map", self._on_save)
         self.laser = Pose2D(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0)
@@ -223,7 +224,7 @@ class MapperService(Service[MapperConfig]):
             float(scan.range_min),
             max_range,
             self.tracked,
-            TrackingParams(moving_speed_mps=self.config.moving_speed_mps),
+            self.tracking,
             static=None if self.slam_mode else self._on_walls,
         )
         self.tracked = tracked
