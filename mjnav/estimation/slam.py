@@ -11,11 +11,17 @@ a keyframe when the robot has moved ``keyframe_distance_m`` or turned ``keyframe
 consecutive keyframes are joined by an edge carrying the front end's relative pose.
 
 Back end (every keyframe): every ``submap_keyframes`` consecutive keyframes form a rigid *submap* (their points in
-the frame of its first keyframe, the anchor). A new keyframe is matched against finished submaps whose keyframes
-lie within ``loop_search_radius_m`` of it (nearest first, at most ``loop_candidates`` per keyframe, excluding the
-keyframes of the local map) by the multi-resolution branch and bound of Hess et al. (ICRA 2016) on a coarse
-likelihood field, then refined by point-to-line ICP and accepted when both the correlative score and the ICP inlier
-share pass their thresholds. The search window of a candidate follows how uncertain the keyframe's pose is relative
+the frame of its first keyframe, the anchor), with the space its scans observed (free or hit, a coarse grid). A new
+keyframe is matched against finished submaps whose keyframes lie within ``loop_search_radius_m`` of it (excluding
+the keyframes of the local map) and whose observed space holds at least ``loop_min_overlap`` of its scan at the
+current estimate (largest overlap first, at most ``loop_candidates`` per keyframe), by the multi-resolution branch
+and bound of Hess et al. (ICRA 2016) on a coarse likelihood field, then refined by point-to-line ICP; it is accepted
+when the correlative score and the ICP inlier share pass their thresholds. Both scores are taken over the scan points
+inside the submap's observed space only: a partial view (the far end of a corridor mapped earlier) can close a loop,
+and points in space the submap never saw neither support nor excuse a match, while a scan from the next corridor,
+whose walls line up with the submap's a corridor width aside, is scored against what the submap saw there and
+fails (tests/estimation/test_slam.py: scored over the whole scan, most such closures were accepted).
+The search window of a candidate follows how uncertain the keyframe's pose is relative
 to the submap's anchor: ``loop_window_sigmas`` standard deviations of the edge variances summed along the least
 uncertain chain of graph edges between them (Dijkstra), clamped between ``loop_min_window_*`` and ``loop_window_*``.
 A place first revisited after a long loop gets the wide window; once a closure has joined the two passes, the next
@@ -183,6 +189,7 @@ _MAY_BE_ZERO = {
     "motion_sigma_rad_per_rad",
     "loop_min_separation_keyframes",
     "loop_min_travel_m",
+    "loop_min_overlap",
     "optimize_min_chi2",
 }
 
@@ -265,6 +272,10 @@ class SlamConfig:
             metres.
         loop_min_score: minimum mean likelihood (0..1) of an accepted loop match.
         loop_min_inliers: minimum PL-ICP inlier share of an accepted loop match.
+        loop_min_overlap: a submap is a loop candidate when at least this share of the keyframe's scan (within
+            ``loop_max_range_m``) falls, at the current estimate, in space the submap's scans observed; the match is
+            scored on those points only. 0: every candidate within ``loop_search_radius_m``, nearest first, scored
+            on the whole scan (the method before; on a scan from the neighbouring corridor it closes false loops).
         edge_sigma_m: front-end edge translational σ at zero motion, metres (a floor: the match's own σ counts
             where larger).
         edge_sigma_per_m: its growth: σ_t² = edge_sigma_m² + edge_sigma_per_m²·d, metres per √metre.
@@ -315,6 +326,7 @@ class SlamConfig:
     loop_max_range_m: float = 15.0
     loop_min_score: float = 0.5
     loop_min_inliers: float = 0.6
+    loop_min_overlap: float = 0.3
     edge_sigma_m: float = 0.01
     edge_sigma_per_m: float = 0.02
     edge_sigma_rad: float = math.radians(0.25)
@@ -334,7 +346,7 @@ class SlamConfig:
         for name in ("local_map_keyframes", "submap_keyframes", "loop_candidates", "cached_submaps"):
             if not isinstance(getattr(self, name), int):
                 raise SlamError(f"SlamConfig.{name} must be an integer")
-        for name in ("min_match_inliers", "loop_min_score", "loop_min_inliers"):
+        for name in ("min_match_inliers", "loop_min_score", "loop_min_inliers", "loop_min_overlap"):
             if getattr(self, name) > 1.0:
                 raise SlamError(f"SlamConfig.{name} must lie in [0, 1]")
         if self.match_window_rad > math.pi or self.loop_window_rad > math.pi:
@@ -390,6 +402,18 @@ class _Submap:
     anchor: int  # keyframe index of the submap frame
     members: range  # keyframe indices
     points: FloatArray  # (P, 2) in the anchor's frame
+    known: NDArray[np.bool_]  # (H, W) cells its scans observed (free or hit), anchor frame, loop_resolution_m cells
+    known_origin: tuple[float, float]  # (x, y) outer corner of known's cell (0, 0) in the anchor frame, metres
+
+    def observed(self, pts: FloatArray, resolution_m: float) -> NDArray[np.bool_]:
+        """(P,) True where the points (anchor frame) fall in a cell the submap's scans observed."""
+        h, w = self.known.shape
+        col = np.floor((pts[:, 0] - self.known_origin[0]) / resolution_m).astype(np.int64)
+        row = np.floor((pts[:, 1] - self.known_origin[1]) / resolution_m).astype(np.int64)
+        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        out = np.zeros(pts.shape[0], dtype=bool)
+        out[inside] = self.known[row[inside], col[inside]]
+        return out
 
 
 @dataclass
@@ -728,10 +752,25 @@ class GraphSlam:
             self._local = None
 
     def _finish_submap(self, members: range) -> None:
+        cfg = self.config
         anchor = members.start
-        pts = self._points_in(self._graph.poses[anchor], members, self.config.loop_max_range_m)
-        if pts.shape[0] >= 3:
-            self._submaps.append(_Submap(anchor, members, pts))
+        frame = self._graph.poses[anchor]
+        pts = self._points_in(frame, members, cfg.loop_max_range_m)
+        if pts.shape[0] < 3:
+            return
+        # The space the members' beams observed (free or hit) within loop_max_range_m, over the box of their hits.
+        res = cfg.loop_resolution_m
+        lasers = [_compose1(_relative1(frame, self._graph.poses[j]), np.asarray(cfg.laser_offset)) for j in members]
+        xy = np.concatenate([pts, np.array(lasers)[:, :2]])
+        lo, hi = xy.min(axis=0) - res, xy.max(axis=0) + res
+        reach = cfg.loop_max_range_m
+        origin = (math.floor(lo[0] / res) * res, math.floor(lo[1] / res) * res)
+        grid = OccupancyGrid(math.ceil((hi[0] - origin[0]) / res), math.ceil((hi[1] - origin[1]) / res), res, origin)
+        for j, laser in zip(members, lasers, strict=True):
+            s = self._kf_scans[j]
+            grid.integrate_scan(laser, s.angles, s.ranges, min(s.range_max, reach), min_range_m=s.range_min)
+        known = grid.log_odds != grid.model.prior_log_odds
+        self._submaps.append(_Submap(anchor, members, pts, known, grid.origin_m))
 
     def _submap_matchers(self, index: int) -> tuple[CorrelativeGridMatcher, PointReference]:
         cache = self._submap_cache
@@ -787,13 +826,28 @@ class GraphSlam:
             & (travel[k] - travel[last] >= cfg.loop_min_travel_m)
             & (d_sub <= cfg.loop_search_radius_m)
         )
-        candidates = sorted(zip(d_sub[ok].tolist(), np.flatnonzero(ok).tolist(), strict=True))
-        if not candidates:
+        if not np.any(ok):
             return 0.0
         scan = self._kf_scans[k].points
         r2 = cfg.loop_max_range_m**2
         scan = scan[np.einsum("ij,ij->i", scan, scan) < r2]
         if scan.shape[0] < 10:
+            return 0.0
+        if cfg.loop_min_overlap > 0.0:
+            # Candidates by overlap: the share of the scan, at the current estimate, inside each submap's observed
+            # space; the largest first.
+            share = {
+                int(i): float(
+                    np.mean(
+                        subs[i].observed(_transform(relative(poses[subs[i].anchor], here), scan), cfg.loop_resolution_m)
+                    )
+                )
+                for i in np.flatnonzero(ok)
+            }
+            candidates = sorted((-v, i) for i, v in share.items() if v >= cfg.loop_min_overlap)
+        else:
+            candidates = sorted(zip(d_sub[ok].tolist(), np.flatnonzero(ok).tolist(), strict=True))
+        if not candidates:
             return 0.0
         d_max = float(np.sqrt(np.max(np.einsum("ij,ij->i", scan, scan))))
         step = cfg.loop_resolution_m / max(d_max, 1.0)  # the farthest point moves at most one cell per step
@@ -805,17 +859,30 @@ class GraphSlam:
             init = _relative1(poses[sub.anchor], here)
             s_t = cfg.loop_window_sigmas * math.sqrt(var_t[sub.anchor])
             s_r = cfg.loop_window_sigmas * math.sqrt(var_r[sub.anchor])
+            # Only the part of the scan inside the space the submap observed can agree or disagree with it: the
+            # scores are taken over that part, which must be at least loop_min_overlap of the scan.
+            seen = (
+                scan
+                if cfg.loop_min_overlap == 0.0
+                else scan[sub.observed(_transform(init, scan), cfg.loop_resolution_m)]
+            )
+            if seen.shape[0] < max(10, cfg.loop_min_overlap * scan.shape[0]):
+                continue
             try:
                 coarse = matcher.match(
-                    scan,
+                    seen,
                     init,
                     linear_window_m=min(cfg.loop_window_m, max(cfg.loop_min_window_m, s_t)),
                     angular_window_rad=min(cfg.loop_window_rad, max(cfg.loop_min_window_rad, s_r)),
                     angular_step_rad=step,
                     min_score=cfg.loop_min_score,
                 )
+                if cfg.loop_min_overlap > 0.0:
+                    seen = scan[sub.observed(_transform(coarse.pose, scan), cfg.loop_resolution_m)]
+                if seen.shape[0] < max(10, cfg.loop_min_overlap * scan.shape[0]):
+                    continue
                 fine = ref.match(
-                    scan, coarse.pose, "plicp", max_correspondence_m=cfg.icp_max_correspondence_m, max_iterations=50
+                    seen, coarse.pose, "plicp", max_correspondence_m=cfg.icp_max_correspondence_m, max_iterations=50
                 )
             except ScanMatchError:
                 continue

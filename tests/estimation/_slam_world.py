@@ -71,13 +71,19 @@ def ring_drive(laps: float = 1.15, speed_mps: float = 1.0, dt_s: float = 0.1) ->
 
 
 def scans(
-    poses: NDArray[np.float64], rng: np.random.Generator, noise_m: float = 0.01, max_range_m: float = 12.0
+    poses: NDArray[np.float64],
+    rng: np.random.Generator,
+    noise_m: float = 0.01,
+    max_range_m: float = 12.0,
+    world: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(angles (B,), ranges (S, B)) of 360-beam scans from ``poses`` in :data:`RING` (inf = no return)."""
+    """(angles (B,), ranges (S, B)) of 360-beam scans from ``poses`` in ``world`` (wall segments; default
+    :data:`RING`; inf = no return)."""
+    walls = RING if world is None else world
     rows = []
     angles = np.zeros(0)
     for p in poses:
-        angles, r = raycast(RING, (float(p[0]), float(p[1]), float(p[2])), 360, 2 * math.pi, max_range_m)
+        angles, r = raycast(walls, (float(p[0]), float(p[1]), float(p[2])), 360, 2 * math.pi, max_range_m)
         rows.append(r + rng.normal(0.0, noise_m, r.shape))
     return angles, np.array(rows)
 
@@ -90,3 +96,36 @@ def true_map(resolution_m: float = 0.05) -> OccupancyGrid:
         a, r = raycast(RING, (float(p[0]), float(p[1]), float(p[2])), 720, 2 * math.pi, 12.0)
         grid.integrate_scan(p, a, r, 12.0)
     return grid
+
+
+# Two parallel corridors 2 m wide (A: 0 <= y <= 2, B: 2.2 <= y <= 4.2) behind a 0.2 m wall that ends at x = 11, so
+# they join at the east end; each has its own boxes. Seen from 2.2 m aside, B's walls line up with A's.
+TWO_CORRIDORS: NDArray[np.float64] = np.array(
+    _box(0.0, 0.0, 14.0, 4.2)
+    + _box(0.0, 2.0, 11.0, 2.2)
+    + _box(3.0, 0.0, 3.5, 0.4)
+    + _box(7.5, 0.0, 8.3, 0.3)
+    + _box(5.0, 1.6, 5.4, 2.0)
+    + _box(2.0, 3.8, 2.6, 4.2)
+    + _box(9.0, 3.9, 9.4, 4.2)
+    + _box(4.0, 2.2, 4.7, 2.5)
+)
+
+
+def two_corridor_drive(speed_mps: float = 1.0, dt_s: float = 0.1) -> NDArray[np.float64]:
+    """(S, 3) true poses: east along corridor A's centre (y = 1) from x = 1 to 12, a U-turn of radius 1.1 m
+    around the wall's end, then west along corridor B's centre (y = 3.2) back to x = 1."""
+    straight, radius = 11.0, 1.1
+    arc = math.pi * radius
+    rows = []
+    for s in np.arange(0.0, 2 * straight + arc, speed_mps * dt_s):
+        if s < straight:
+            rows.append((1.0 + s, 1.0, 0.0))
+        elif s < straight + arc:
+            a = -0.5 * math.pi + (s - straight) / radius
+            rows.append((12.0 + radius * math.cos(a), 2.1 + radius * math.sin(a), a + 0.5 * math.pi))
+        else:
+            rows.append((12.0 - (s - straight - arc), 3.2, math.pi))
+    out = np.array(rows)
+    out[:, 2] = np.remainder(out[:, 2] + math.pi, 2 * math.pi) - math.pi
+    return out

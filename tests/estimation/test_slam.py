@@ -15,7 +15,7 @@ from mjnav.estimation.slam_metrics import (
     relation_error,
     relative_pose_error,
 )
-from tests.estimation._slam_world import ring_drive, scans, true_map
+from tests.estimation._slam_world import TWO_CORRIDORS, ring_drive, scans, true_map, two_corridor_drive
 
 
 def _run(loop_candidates: int, seed: int) -> tuple[GraphSlam, np.ndarray, np.ndarray]:
@@ -80,6 +80,53 @@ def test_loop_information_is_soft_along_a_corridor_in_the_keyframes_frame() -> N
     assert math.sqrt(c[1, 1]) == pytest.approx(10.0 * cfg.loop_sigma_m)  # along it: ten times softer
     # The heading is scaled by the same factor (σ 1e-3 rad × loop_sigma_m / 1e-3 m), above the loop_sigma_rad floor.
     assert math.sqrt(c[2, 2]) == pytest.approx(max(cfg.loop_sigma_rad, cfg.loop_sigma_m))
+
+
+def _two_corridors(seed: int, loop_min_overlap: float) -> tuple[GraphSlam, np.ndarray]:
+    """East along corridor A, a U-turn, west along the parallel corridor B, with every loop search window 2.3 m
+    wide: from B, the search reaches A, whose walls line up with B's 2.2 m aside (the maze's false closure)."""
+    truth = two_corridor_drive()
+    rng = np.random.default_rng(seed)
+    angles, ranges = scans(truth, rng, max_range_m=8.0, world=TWO_CORRIDORS)
+    odom = corrupt_odometry(truth, rng, (0.05, 0.05, 0.05))
+    cfg = SlamConfig(
+        max_range_m=8.0,
+        loop_min_travel_m=0.0,  # B's keyframes are candidates against A's submaps
+        loop_window_m=2.3,
+        loop_min_window_m=2.3,
+        loop_min_overlap=loop_min_overlap,
+    )
+    slam = GraphSlam(cfg, initial_pose=truth[0])
+    for k in range(truth.shape[0]):
+        slam.update(0.1 * k, odom[k], ranges[k], angles, range_min_m=0.1, range_max_m=8.0)
+    return slam, truth
+
+
+def _loop_errors(slam: GraphSlam, truth: np.ndarray) -> np.ndarray:
+    """(L,) translational error of each loop edge's measurement against the true relative pose, metres."""
+    kf_truth = truth[np.rint(slam.keyframe_stamps() / 0.1).astype(int)]
+    graph = slam.pose_graph()
+    loops = set(map(tuple, slam.loop_edges().tolist()))
+    errs = [
+        relative(relative(kf_truth[a], kf_truth[b]), z)[:2]
+        for (a, b), z in zip(graph.edges.tolist(), graph.measurements, strict=True)
+        if (a, b) in loops
+    ]
+    return np.hypot(*np.array(errs).reshape(-1, 2).T)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_a_scan_from_the_neighbouring_corridor_does_not_close_a_loop(seed: int) -> None:
+    """Loop matches are scored on the part of the scan inside the space the submap observed: a scan from corridor
+    B cannot borrow A's walls. Scored over the whole scan (loop_min_overlap = 0), B's keyframes close against A."""
+    slam, truth = _two_corridors(seed, SlamConfig().loop_min_overlap)
+    errors = _loop_errors(slam, truth)
+    assert errors.size >= 5  # the U-turn re-observes A's east end from B: true closures
+    assert np.mean(errors > 1.0) < 0.1  # (at most one a run on these seeds; 2.2 m = the next corridor)
+    _, est = slam.trajectory()
+    assert float(np.sqrt(np.mean(np.sum((est[:, :2] - truth[:, :2]) ** 2, axis=1)))) < 0.1
+    whole, _ = _two_corridors(seed, 0.0)
+    assert np.mean(_loop_errors(whole, truth) > 1.0) > 0.5  # the failure this guards against
 
 
 def test_outputs_of_a_short_run() -> None:
