@@ -12,11 +12,16 @@ robot drives from the world's start to its default goal on an unknown map. It pr
 
 Goals (issue 10): every world × 5 seeds at ``--rtf max``: reached, 0 collisions, min clearance >= 0.05 m, time
 ratio <= 1; the whole stack at >= 10x real time. Issue 13: the same runs navigate on SLAM with the sim's
-``ground_truth`` off; ATE (SLAM's pose against the truth) <= 0.03 m, map accuracy >= 0.95 both ways.
+``ground_truth`` off; ATE (SLAM's pose against the truth) <= 0.03 m, map accuracy >= 0.95 both ways; and the maze
+with 3x the default odometry noise: reached, at least one loop closure, ATE <= 0.05 m. A loop closure needs a place
+seen again: the default goal's route goes out and never looks back (nothing it sees was seen 10 m of driving
+earlier), so that check drives a round trip, to the maze's goal and back to its start (``--round-trip``; it runs
+after the worlds unless ``--no-noisy-maze``).
 
     python benchmarks/mission.py                              # every world with a goal, seeds 0-4, rtf max
     python benchmarks/mission.py --world warehouse --seeds 0,1 --rtf 4
     python benchmarks/mission.py --quick                      # rooms, seed 0
+    python benchmarks/mission.py --world maze --round-trip --set sim.odom_noise_scale=3 --no-noisy-maze
 """
 
 from __future__ import annotations
@@ -40,6 +45,8 @@ from mjnav.sim.worlds import available_worlds, world_info
 
 REPO = Path(__file__).resolve().parent.parent
 SERVICES = ("sim", "slam", "mapper", "planner", "smoother", "controller", "viz")
+#: Issue 13's noisy-odometry setting: 3x the sim's default wheel-odometry errors.
+NOISY_MAZE = "sim.odom_noise_scale=3"
 _TICKS = os.sysconf("SC_CLK_TCK")
 
 
@@ -59,10 +66,16 @@ def _cpu_s(pid: int) -> float:
 
 
 def run_once(
-    world: str, rtf: str, seed: int, free_running: bool = False, overrides: tuple[str, ...] = ()
+    world: str,
+    rtf: str,
+    seed: int,
+    free_running: bool = False,
+    overrides: tuple[str, ...] = (),
+    round_trip: bool = False,
 ) -> dict[str, object]:
     """One mission at one real-time factor ("max" = as fast as the services allow); ``overrides``: extra
-    ``service.key=value`` settings for ``mjnav up --set``."""
+    ``service.key=value`` settings for ``mjnav up --set``; ``round_trip``: to the goal and back to the start (time,
+    length and bound are the two legs' sums)."""
     info = world_info(world)
     assert info.goal is not None, f"world {world} has no default goal"
     port = _free_port()
@@ -87,7 +100,8 @@ def run_once(
             config = json.loads(bus.call("config", service="controller").data)
             cpu0 = {name: _cpu_s(pid) for name, pid in pids.items()}
             wall0 = time.monotonic()
-            outcome = client.run_goal(info.goal.x, info.goal.y, timeout_s=300.0, wall_timeout_s=900.0)
+            goals = [(info.goal.x, info.goal.y)] + ([(info.start.x, info.start.y)] if round_trip else [])
+            outcomes = client.run_goals(goals, timeout_s=300.0, wall_timeout_s=900.0)
             wall = time.monotonic() - wall0
             cpu = {name: (_cpu_s(pid) - cpu0[name]) / wall for name, pid in pids.items()}
             now_pids = {s.service: int(s.pid) for s in status.latest_by_key().values()}
@@ -101,7 +115,9 @@ def run_once(
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(60)
-    optimal = shortest_length_m(world, outcome.start, outcome.goal)
+    reached = len(outcomes) == len(goals) and all(o.result == "reached" for o in outcomes)
+    optimal = sum(shortest_length_m(world, o.start, o.goal) for o in outcomes)
+    time_s = sum(o.time_s for o in outcomes)
     recall, precision = map_accuracy(info.path, *ros.grid_frame(map_msg)) if map_msg is not None else (0.0, 0.0)
     v_max = float(config["max_speed_mps"])
     bound = 1.25 * optimal / v_max
@@ -110,11 +126,12 @@ def run_once(
         "seed": seed,
         "rtf_requested": rtf,
         "lockstep": not free_running,
-        "result": outcome.result,
-        "time_to_goal_s": outcome.time_s,
+        "round_trip": round_trip,
+        "result": "reached" if reached else outcomes[-1].result,
+        "time_to_goal_s": time_s,
         "bound_s": bound,
-        "time_ratio": outcome.time_s / bound,
-        "driven_m": outcome.path_length_m,
+        "time_ratio": time_s / bound,
+        "driven_m": sum(o.path_length_m for o in outcomes),
         "optimal_m": optimal,
         "min_clearance_m": clearance,
         "rtf_achieved": rtf_got,
@@ -150,6 +167,16 @@ def _slam_verdict(r: dict[str, object]) -> bool:
     )
 
 
+def _noisy_loop_verdict(r: dict[str, object]) -> bool:
+    """Issue 13's goal for the maze at 3x odometry noise: reached, no collision, a loop closure, ATE <= 5 cm."""
+    return (
+        r["result"] == "reached"
+        and r["collisions"] == 0
+        and int(r["loop_closures"]) >= 1  # type: ignore[call-overload]
+        and float(r["ate_rms_m"]) <= 0.05  # type: ignore[arg-type]
+    )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--world", help="one world (default: every bundled world with a default goal)")
@@ -157,6 +184,12 @@ def main() -> int:
     parser.add_argument("--rtf", default="max", help="real-time factor: max (default) or a number")
     parser.add_argument("--free-running", action="store_true", help="sim on wall time instead of lockstep")
     parser.add_argument("--quick", action="store_true", help="rooms, seed 0 only")
+    parser.add_argument("--round-trip", action="store_true", help="drive to the goal and back to the start")
+    parser.add_argument(
+        "--no-noisy-maze",
+        action="store_true",
+        help="skip the issue-13 check after the worlds (maze round trip at 3x odometry noise, same seeds)",
+    )
     parser.add_argument(
         "--set", action="append", default=[], metavar="SERVICE.KEY=VALUE", help="a stack setting (repeatable)"
     )
@@ -170,11 +203,17 @@ def main() -> int:
     rows = []
     for world in worlds:
         for seed in seeds:
-            rows.append(run_once(world, args.rtf, seed, args.free_running, tuple(args.set)))
+            rows.append(run_once(world, args.rtf, seed, args.free_running, tuple(args.set), args.round_trip))
             if not args.json:
                 _print_row(rows[-1])
+    noisy = []
+    if not (args.quick or args.no_noisy_maze or args.free_running):
+        for seed in seeds:
+            noisy.append(run_once("maze", args.rtf, seed, False, (*args.set, NOISY_MAZE), round_trip=True))
+            if not args.json:
+                _print_row(noisy[-1])
     if args.json:
-        print(json.dumps(rows))
+        print(json.dumps(rows + noisy))
         return 0
     ok = [r for r in rows if _verdict(r)]
     rtfs = sorted(float(r["rtf_achieved"]) for r in rows)  # type: ignore[arg-type]
@@ -187,6 +226,12 @@ def main() -> int:
         f"goal: on SLAM with ground truth off, reached, 0 collisions, ATE <= 0.03 m, map accuracy >= 0.95: "
         f"{len(slam_ok)}/{len(rows)} runs {'met' if len(slam_ok) == len(rows) else 'NOT met'}"
     )
+    if noisy:
+        ok3 = [r for r in noisy if _noisy_loop_verdict(r)]
+        print(
+            f"goal: maze round trip with 3x odometry noise, reached, 0 collisions, >= 1 loop closure, ATE <= 0.05 m: "
+            f"{len(ok3)}/{len(noisy)} runs {'met' if len(ok3) == len(noisy) else 'NOT met'}"
+        )
     median = rtfs[len(rtfs) // 2]
     print(
         f"goal: stack >= 10x real time: median {median:.1f}x (min {rtfs[0]:.1f}x) "
@@ -200,7 +245,8 @@ def _print_row(r: dict[str, object]) -> None:
     recall, precision = (float(a) for a in r["map_accuracy"])  # type: ignore[attr-defined]
     restarted = r["restarted"]
     print(
-        f"{r['world']:>9s} seed {r['seed']} rtf {r['rtf_requested']}: {r['result']:>8s} coll {r['collisions']} "
+        f"{r['world']:>9s}{' (round trip)' if r['round_trip'] else ''} seed {r['seed']} rtf {r['rtf_requested']}: "
+        f"{r['result']:>8s} coll {r['collisions']} "
         f"clear {r['min_clearance_m']:.3f} m  t {r['time_to_goal_s']:.2f}/{r['bound_s']:.1f} s "
         f"(ratio {r['time_ratio']:.2f})  rtf {r['rtf_achieved']:.1f}x  {'ok' if _verdict(r) else 'FAIL'}  "
         f"ATE {r['ate_rms_m']:.4f} m  loops {r['loop_closures']}  map {recall:.3f}/"
