@@ -27,6 +27,10 @@ from mjnav.runtime.service import Service
 
 #: Wall seconds between status messages.
 STATUS_PERIOD_S = 1.0
+#: Wall seconds one step may run while the status heartbeat still goes out (from a helper thread): a numba kernel
+#: compiling on its first call (seconds; tens on a loaded machine with cold caches) is work, not a hang, and must not
+#: get the service killed by the launcher's hang check. A step running longer than this is hung: the heartbeat stops.
+STEP_HEARTBEAT_LIMIT_S = 60.0
 log = logging.getLogger("mjnav.runtime")
 #: How long blocking waits sleep at most before re-checking for a stop request.
 _POLL_S = 0.1
@@ -184,6 +188,7 @@ class ServiceRunner:
         self._signals = 0
         self._config_lock = threading.Lock()
         self._next_config: Any = None  # a config set through set_param, swapped in before the next step
+        self._step_started: float | None = None  # time.monotonic() when the running step began (None: between steps)
 
     # ---------------------------------------------------------------------------------------------- signals
 
@@ -260,6 +265,11 @@ class ServiceRunner:
         next_status = time.monotonic()
         next_tick = math.nan
         waited_for_clock = False
+        heartbeat = threading.Thread(
+            target=self._long_step_heartbeat, args=(lambda: status_pub.put(self._status_msg(bus, clock.now())),),
+            name=f"{self.name}-heartbeat", daemon=True,
+        )  # fmt: skip
+        heartbeat.start()
         try:
             while not self.stop_event.is_set():
                 if time.monotonic() >= next_status:
@@ -303,6 +313,8 @@ class ServiceRunner:
                     lockstep.ready(now, next_tick)
         finally:
             self._state = "finalized"
+            self.stop_event.set()  # ends the heartbeat thread (the loop has ended whatever the reason)
+            heartbeat.join()
             try:
                 service.deactivate()
             finally:
@@ -348,8 +360,30 @@ class ServiceRunner:
         self.config = service.config = new
         self.log.info("parameters set: %s", ", ".join(f"{k} = {v!r}" for k, v in changed.items()) or "no change")
 
+    def _long_step_heartbeat(self, send_status: Any) -> None:
+        """While a step runs longer than a status period (and at most :data:`STEP_HEARTBEAT_LIMIT_S`), send the
+        status every period from this thread, and say once per step in the log what holds the loop."""
+        warned: float | None = None
+        while not self.stop_event.wait(STATUS_PERIOD_S):
+            started = self._step_started
+            if started is None:
+                continue
+            running = time.monotonic() - started
+            if running < STATUS_PERIOD_S or running > STEP_HEARTBEAT_LIMIT_S:
+                continue
+            if warned != started and running >= 5 * STATUS_PERIOD_S:
+                warned = started
+                self.log.warning(
+                    "one step has been running for %.0f s (a kernel compiling on first use?); the status goes on "
+                    "for up to %.0f s of it",
+                    running,
+                    STEP_HEARTBEAT_LIMIT_S,
+                )
+            send_status()
+
     def _step(self, service: Service[Any], now: float) -> None:
         t0 = time.perf_counter()
+        self._step_started = time.monotonic()
         try:
             service.step(now)
         except Exception as exc:
@@ -357,6 +391,7 @@ class ServiceRunner:
             self.stats.last_error = f"{type(exc).__name__}: {exc}"
             if self.stats.step_errors <= 10 or self.stats.step_errors % 100 == 0:
                 self.log.exception("step failed (%d so far)", self.stats.step_errors)
+        self._step_started = None
         dt = time.perf_counter() - t0
         s = self.stats
         s.steps += 1
