@@ -24,7 +24,9 @@ def _demo(seed: int) -> dict[str, Any]:
         "--port", str(free_port()),
     )  # fmt: skip
     stdout, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 0, stdout[-3000:]
+    # On failure: the demo's own lines (goal outcomes, errors) wherever they are, then the end of the log.
+    own = "\n".join(line for line in stdout.splitlines() if line.startswith(("mjnav demo", "Traceback", "{")))
+    assert proc.returncode == 0, f"{own[-3000:]}\n...\n{stdout[-2000:]}"
     summary: dict[str, Any] = json.loads(stdout.strip().splitlines()[-1])
     return summary
 
