@@ -836,14 +836,12 @@ class GraphSlam:
         if cfg.loop_min_overlap > 0.0:
             # Candidates by overlap: the share of the scan, at the current estimate, inside each submap's observed
             # space; the largest first.
-            share = {
-                int(i): float(
-                    np.mean(
-                        subs[i].observed(_transform(relative(poses[subs[i].anchor], here), scan), cfg.loop_resolution_m)
-                    )
-                )
+            res = cfg.loop_resolution_m
+            inside = {
+                int(i): subs[i].observed(_transform(_relative1(poses[subs[i].anchor], here), scan), res)
                 for i in np.flatnonzero(ok)
             }
+            share = {i: float(np.mean(mask)) for i, mask in inside.items()}
             candidates = sorted((-v, i) for i, v in share.items() if v >= cfg.loop_min_overlap)
         else:
             candidates = sorted(zip(d_sub[ok].tolist(), np.flatnonzero(ok).tolist(), strict=True))
@@ -861,11 +859,7 @@ class GraphSlam:
             s_r = cfg.loop_window_sigmas * math.sqrt(var_r[sub.anchor])
             # Only the part of the scan inside the space the submap observed can agree or disagree with it: the
             # scores are taken over that part, which must be at least loop_min_overlap of the scan.
-            seen = (
-                scan
-                if cfg.loop_min_overlap == 0.0
-                else scan[sub.observed(_transform(init, scan), cfg.loop_resolution_m)]
-            )
+            seen = scan if cfg.loop_min_overlap == 0.0 else scan[inside[i]]  # the mask ranked it: at init
             if seen.shape[0] < max(10, cfg.loop_min_overlap * scan.shape[0]):
                 continue
             try:

@@ -16,6 +16,7 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import FrameType
 from typing import Any, Protocol
@@ -360,7 +361,7 @@ class ServiceRunner:
         self.config = service.config = new
         self.log.info("parameters set: %s", ", ".join(f"{k} = {v!r}" for k, v in changed.items()) or "no change")
 
-    def _long_step_heartbeat(self, send_status: Any) -> None:
+    def _long_step_heartbeat(self, send_status: Callable[[], None]) -> None:
         """While a step runs longer than a status period (and at most :data:`STEP_HEARTBEAT_LIMIT_S`), send the
         status every period from this thread, and say once per step in the log what holds the loop."""
         warned: float | None = None
