@@ -3,8 +3,9 @@
 With ``map_source = "scan"`` (the default) each new scan is fused into a persistent log-odds
 :class:`~mjnav.mapping.OccupancyGrid` (marking and clearing, like Nav2's obstacle layer) at the pose the robot had
 when the scan was taken, from ``pose_source`` (by default SLAM's ``map → odom`` ∘ the odometry at the scan's stamp),
-and inflated into ``costmap`` (0–100, −1 unknown) at ``publish_rate_hz`` of sim time. Every scan counts (SLAM's own
-map holds only its keyframes), which keeps thin walls solid in the costmap. The grid is published on ``map`` only
+and inflated into ``costmap`` (0–100, −1 unknown) at ``publish_rate_hz`` of sim time, the first one as soon as a
+cell is known (never an all-unknown costmap). Every scan counts (SLAM's own map holds only its keyframes), which
+keeps thin walls solid in the costmap. The grid is published on ``map`` only
 when the mapper is the map's source (``pose_source`` ``ground_truth`` or ``odom``; on SLAM's pose, SLAM owns
 ``map``); it is checkpointed in the run's state directory, saved as PGM + YAML on request (endpoint ``save_map``)
 and on exit (``save_path``); ``prior_map`` starts from a saved map. Returns of a moving obstacle (their motion
@@ -19,6 +20,7 @@ saves the newest SLAM map.
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -123,6 +125,7 @@ class MapperService(Service[MapperConfig]):
                 origin_m=cfg.origin_m,
             )
         self.frame = GridFrame(self.grid.resolution_m, self.grid.origin_m, self.grid.shape)
+        self.seeded = bool(cfg.prior_map)  # something is known: a prior or resumed map, or enough scans
         self.slam_mode = cfg.map_source == "slam"
         if not self.slam_mode:
             self._restore_checkpoint()
@@ -154,13 +157,28 @@ class MapperService(Service[MapperConfig]):
         scan = self.scan.take()
         if scan is not None:
             self._integrate(scan)
-        if now >= self.next_publish:
-            self.next_publish = now + 1.0 / self.config.publish_rate_hz
+        if now >= self.next_publish and self._has_data():
+            # On the publication grid (k / rate), so the first costmap, which goes out as soon as there is data,
+            # does not shift the later ones against the planner's steps.
+            rate = self.config.publish_rate_hz
+            self.next_publish = (math.floor(now * rate + 1e-9) + 1.0) / rate
             self._publish(now)
         if not self.slam_mode and self.config.checkpoint_period_s > 0 and now >= self.next_checkpoint:
             self.next_checkpoint = now + self.config.checkpoint_period_s
             if self.scans != self.checkpointed_scans:
                 self._checkpoint()
+
+    def _has_data(self) -> bool:
+        """Whether any cell is known: the grid's (a prior or resumed map, or scans enough for a cell to cross a
+        threshold), or SLAM's map and scans in slam mode. Before that no costmap goes out: an all-unknown one would
+        have the planner route straight through unknown space, and the robot set off on that route."""
+        if not self.seeded:
+            if self.slam_mode:
+                self.seeded = self.scans > 0 or (self.static is not None and self.static.latest() is not None)
+            elif self.scans:
+                model, lo = self.grid.model, self.grid.log_odds
+                self.seeded = bool(((lo < model.free_threshold) | (lo > model.occupied_threshold)).any())
+        return self.seeded
 
     # ------------------------------------------------------------------------------------------- checkpoints
 
@@ -199,6 +217,7 @@ class MapperService(Service[MapperConfig]):
             self.log.warning("map checkpoint %s is for another grid: starting from scratch", path)
             return
         g.log_odds[...] = log_odds
+        self.seeded = True
         known = int(np.count_nonzero(log_odds))
         self.log.info("resumed the map from checkpoint %s (%d known cells)", path, known)
 

@@ -432,9 +432,13 @@ def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
         0.0, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / 90, scan_time_s=0.1,
         range_min_m=0.05, range_max_m=12.0, ranges_m=np.full(90, 2.0),
     )  # fmt: skip
-    first.send("ground_truth", ros.pose_stamped(0.0, "map", Pose2D(0.0, 0.0, 0.0)))
-    first.send("scan", scan)
-    first.step(0.0, {"map": 1})
+    for k in range(5):  # a cell needs several scans to cross a threshold; until then no map goes out
+        t = 0.25 * k  # the last step, t = 1.0, checkpoints (checkpoint_period_s)
+        scan.header = ros.header(t, "laser")  # type: ignore[attr-defined]
+        first.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(0.0, 0.0, 0.0)))
+        first.send("scan", scan)
+        first.step(t)
+    assert wait_until(lambda: len(first.received["map"]) >= 1, 10.0)
     known = np.count_nonzero(first.service.grid.log_odds)
     assert known > 1000
     first.service.bus.close()
@@ -459,6 +463,30 @@ def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
         with pytest.raises(RemoteError, match="maps_dir"):
             second.world.call("save_map", string(data=bad), timeout_s=10.0)
     assert not (tmp_path / "evil.yaml").exists()
+
+
+def test_the_mapper_publishes_no_all_unknown_costmap_and_the_first_known_one_at_once(peer: Peer) -> None:
+    """No costmap before a cell is known (the planner would route straight through unknown space and the robot
+    set off on that route); the first goes out in the step a cell becomes known, the later ones on the
+    ``publish_rate_hz`` grid (k / rate), so the planner's steps see them as before."""
+    h = Harness(
+        MapperService, peer, ("costmap",), map_source="scan", pose_source="ground_truth", publish_rate_hz=2.0,
+        width_m=8.0, height_m=8.0, origin_m=(-4.0, -4.0), checkpoint_period_s=0.0,
+    )  # fmt: skip
+    for k in range(12):  # t = 0.0 .. 1.1
+        t = 0.1 * k
+        h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(0.0, 0.0, 0.0)))
+        h.send("scan", ros.laser_scan(
+            t, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / 90, scan_time_s=0.1,
+            range_min_m=0.05, range_max_m=12.0, ranges_m=np.full(90, 2.0),
+        ))  # fmt: skip
+        h.step(t)
+    assert wait_until(lambda: len(h.received["costmap"]) >= 3, 10.0)
+    costmaps = h.received["costmap"]
+    stamps = [round(ros.seconds(m.header.stamp), 3) for m in costmaps]
+    assert len(stamps) == 3 and 0.0 < stamps[0] < 0.5, stamps  # not at t = 0 (one scan knows no cell) nor at 0.5
+    assert (np.asarray(costmaps[0].data) != -1).any()
+    assert stamps[1:] == [0.5, 1.0], stamps  # then on the grid
 
 
 def _ring_scan(t: float, centre: Pose2D, radius: float) -> object:
