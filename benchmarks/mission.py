@@ -168,7 +168,8 @@ def _slam_verdict(r: dict[str, object]) -> bool:
 
 
 def _noisy_loop_verdict(r: dict[str, object]) -> bool:
-    """Issue 13's goal for the maze at 3x odometry noise: reached, no collision, a loop closure, ATE <= 5 cm."""
+    """Issue 13's goal for the maze at 3x odometry noise (and how any round trip is judged): reached, no collision,
+    a loop closure, ATE <= 5 cm."""
     return (
         r["result"] == "reached"
         and r["collisions"] == 0
@@ -215,12 +216,15 @@ def main() -> int:
     if args.json:
         print(json.dumps(rows + noisy))
         return 0
-    ok = [r for r in rows if _verdict(r)]
     rtfs = sorted(float(r["rtf_achieved"]) for r in rows)  # type: ignore[arg-type]
-    print(
-        f"goal: reached, 0 collisions, clearance >= 0.05 m, time ratio <= 1: {len(ok)}/{len(rows)} runs "
-        f"{'met' if len(ok) == len(rows) else 'NOT met'}"
-    )
+    if args.round_trip:  # issue 10's time goal is for one goal from the start; a round trip is judged as below
+        noisy = rows + noisy
+    else:
+        ok = [r for r in rows if _verdict(r)]
+        print(
+            f"goal: reached, 0 collisions, clearance >= 0.05 m, time ratio <= 1: {len(ok)}/{len(rows)} runs "
+            f"{'met' if len(ok) == len(rows) else 'NOT met'}"
+        )
     slam_ok = [r for r in rows if _slam_verdict(r)]
     print(
         f"goal: on SLAM with ground truth off, reached, 0 collisions, ATE <= 0.03 m, map accuracy >= 0.95: "
@@ -229,7 +233,8 @@ def main() -> int:
     if noisy:
         ok3 = [r for r in noisy if _noisy_loop_verdict(r)]
         print(
-            f"goal: maze round trip with 3x odometry noise, reached, 0 collisions, >= 1 loop closure, ATE <= 0.05 m: "
+            f"goal (issue 13's loop closure; the noisy maze's at 3x odometry noise): round trip reached, "
+            f"0 collisions, >= 1 loop closure, ATE <= 0.05 m: "
             f"{len(ok3)}/{len(noisy)} runs {'met' if len(ok3) == len(noisy) else 'NOT met'}"
         )
     median = rtfs[len(rtfs) // 2]
@@ -244,11 +249,15 @@ def _print_row(r: dict[str, object]) -> None:
     cpu = "  ".join(f"{k} {100 * v:.0f}%" for k, v in r["cpu_share"].items())  # type: ignore[attr-defined]
     recall, precision = (float(a) for a in r["map_accuracy"])  # type: ignore[attr-defined]
     restarted = r["restarted"]
+    if r["round_trip"]:  # the time bound is issue 10's for single goals: a round trip is judged on its loops
+        verdict = f"loop goal {'ok' if _noisy_loop_verdict(r) else 'FAIL'}"
+    else:
+        verdict = "ok" if _verdict(r) else "FAIL"
     print(
         f"{r['world']:>9s}{' (round trip)' if r['round_trip'] else ''} seed {r['seed']} rtf {r['rtf_requested']}: "
         f"{r['result']:>8s} coll {r['collisions']} "
         f"clear {r['min_clearance_m']:.3f} m  t {r['time_to_goal_s']:.2f}/{r['bound_s']:.1f} s "
-        f"(ratio {r['time_ratio']:.2f})  rtf {r['rtf_achieved']:.1f}x  {'ok' if _verdict(r) else 'FAIL'}  "
+        f"(ratio {r['time_ratio']:.2f})  rtf {r['rtf_achieved']:.1f}x  {verdict}  "
         f"ATE {r['ate_rms_m']:.4f} m  loops {r['loop_closures']}  map {recall:.3f}/"
         f"{precision:.3f} {'ok' if _slam_verdict(r) else 'FAIL'}  CPU: {cpu}"
         + (f"  RESTARTED: {', '.join(restarted)}" if restarted else ""),  # type: ignore[arg-type]
