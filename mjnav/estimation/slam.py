@@ -478,6 +478,23 @@ class GraphSlam:
         self._odom = _pose_arg(odom_pose, "odom_pose")
         self._pose = _pose_arg(pose, "pose")
 
+    # -- pickling (checkpoints) --------------------------------------------------------------------------------
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The state without its caches: the front end's local map and the loop search's submap matchers are
+        derived from the keyframes, and each matcher is ~1 MB (maze, 63 keyframes, 6 submap matchers cached: 8.3 MB
+        and 17.5 ms to pickle with them, 1.6 MB and 5.8 ms without)."""
+        state = self.__dict__.copy()
+        state["_local"] = None
+        state["_submap_cache"] = OrderedDict()
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if self._graph.poses:
+            # The same keyframes at the same poses as when it was last built (only a new keyframe moves poses).
+            self._rebuild_local_map()
+
     # -- public state ------------------------------------------------------------------------------------------
 
     @property

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -54,6 +55,33 @@ def test_loop_closure_is_found_and_lowers_the_error(seed: int) -> None:
     # The returned estimate's covariance is a proper covariance.
     cov = with_loops.covariance
     assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
+
+
+def test_a_pickled_slam_continues_exactly_and_leaves_its_caches_behind() -> None:
+    """A checkpoint (pickle) holds the state, not the caches derived from it: restored half-way round the ring,
+    after loop closures filled the submap cache, the SLAM goes on to the same poses to the last bit."""
+    truth = ring_drive()
+    rng = np.random.default_rng(0)
+    angles, ranges = scans(truth, rng, noise_m=0.02)
+    odom = corrupt_odometry(truth, rng, (0.05, 0.05, 0.05))
+    slam = GraphSlam(SlamConfig(max_range_m=4.0, loop_candidates=2), initial_pose=truth[0])
+
+    def update(s: GraphSlam, k: int) -> np.ndarray:
+        return s.update(0.1 * k, odom[k], ranges[k], angles, range_min_m=0.1, range_max_m=12.0).pose
+
+    k = 0
+    while slam.loop_closures == 0:  # drive on until the first closure (the submap cache then holds matchers)
+        update(slam, k)
+        k += 1
+    assert slam._submap_cache and slam._local is not None
+    blob = pickle.dumps(slam)
+    restored = pickle.loads(blob)
+    assert not restored._submap_cache  # rebuilt when the loop search needs it
+    assert len(blob) < 0.5 * len(pickle.dumps(slam.__dict__))
+    for j in range(k, truth.shape[0]):
+        assert np.array_equal(update(restored, j), update(slam, j)), j
+    assert restored.loop_closures == slam.loop_closures > 1
+    assert np.array_equal(restored.trajectory()[1], slam.trajectory()[1])
 
 
 def test_loop_edges_carry_the_scaled_match_covariance() -> None:
