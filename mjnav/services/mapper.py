@@ -5,12 +5,12 @@ With ``map_source = "scan"`` (the default) each new scan is fused into a persist
 when the scan was taken, from ``pose_source`` (by default SLAM's ``map → odom`` ∘ the odometry at the scan's stamp),
 and inflated into ``costmap`` (0–100, −1 unknown) at ``publish_rate_hz`` of sim time, the first one as soon as a
 cell is known (never an all-unknown costmap). Every scan counts (SLAM's own map holds only its keyframes), which
-keeps thin walls solid in the costmap. The grid is published on ``map`` only
-when the mapper is the map's source (``pose_source`` ``ground_truth`` or ``odom``; on SLAM's pose, SLAM owns
-``map``); it is checkpointed in the run's state directory, saved as PGM + YAML on request (endpoint ``save_map``)
-and on exit (``save_path``); ``prior_map`` starts from a saved map. Returns of a moving obstacle (their motion
-between two scans, as the controller's collision check tracks it) clear the cells before them and mark nothing:
-the costmap holds what stays, and the controller waits for what passes.
+keeps thin walls solid in the costmap. The grid is published on ``map`` only when the mapper is the map's source
+(``pose_source`` ``ground_truth`` or ``odom``; on SLAM's pose, SLAM owns ``map``); it is checkpointed in the run's
+state directory, saved as PGM + YAML on request (endpoint ``save_map``) and on exit (``save_path``); ``prior_map``
+starts from a saved map. Returns of a moving obstacle (their motion between two scans, as the controller's
+collision check tracks it) clear the cells before them and mark nothing: the costmap holds what stays, and the
+controller waits for what passes.
 
 With ``map_source = "slam"`` the static layer is SLAM's ``map`` (resampled onto the mapper's fixed grid) and an
 obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` at SLAM's pose; ``save_map`` then
