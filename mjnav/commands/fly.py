@@ -84,7 +84,13 @@ def _plan(args: argparse.Namespace, pad: Any) -> Any:
     if kind == "hover" and not rest:
         return hover_plan(pad, t0)
     if kind == "waypoints" and len(rest) == 1:
-        data = json.loads(Path(rest[0]).read_text(encoding="utf-8"))
+        try:
+            data = json.loads(Path(rest[0]).read_text(encoding="utf-8"))
+        except json.JSONDecodeError as exc:
+            raise ValueError(
+                f"waypoints file {rest[0]}: not JSON ({exc}); write a list of [x, y, z] in ENU metres, "
+                "e.g. [[0, 0, 1.5], [1, 0, 1.5], [1, 1, 1.5]]"
+            ) from None
         return waypoints_plan(pad, t0, data)
     raise ValueError(f"--trajectory must be figure8, hover or waypoints FILE, got {' '.join(args.trajectory)!r}")
 

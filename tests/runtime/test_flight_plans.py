@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -42,3 +44,17 @@ def test_hover_and_waypoints() -> None:
     np.testing.assert_allclose(ref[-1], wps[-1], atol=1e-9)
     with pytest.raises(ValueError):
         waypoints_plan(PAD, 1.0, [[0.0, math.nan, 1.0]])
+
+
+def test_a_waypoints_file_that_is_not_json_says_what_to_write(tmp_path: Path) -> None:
+    from mjnav.commands.fly import _plan
+
+    text = tmp_path / "wp.txt"
+    text.write_text("0 0 1.0\n1 0 1.5\n", encoding="utf-8")
+    args = argparse.Namespace(trajectory=["waypoints", str(text)], state="mocap")
+    with pytest.raises(ValueError, match=r"wp\.txt: not JSON .*list of \[x, y, z\] in ENU metres"):
+        _plan(args, PAD)
+    good = tmp_path / "wp.json"
+    good.write_text("[[1.0, 0.0, 1.5]]", encoding="utf-8")
+    plan = _plan(argparse.Namespace(trajectory=["waypoints", str(good)], state="mocap"), PAD)
+    np.testing.assert_allclose(plan.reference(np.array([plan.end_s]))[0], [1.0, 0.0, 1.5], atol=1e-9)
