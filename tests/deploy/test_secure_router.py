@@ -61,10 +61,10 @@ def test_secure_router_admits_certificate_holders_and_only_their_own_tokens(cert
         router.send_signal(signal.SIGINT)
         try:
             code = router.wait(10)
-        except subprocess.TimeoutExpired:  # seen once in a full suite: show what the router said before it hung
+        except subprocess.TimeoutExpired as exc:  # seen once in a full suite: show what the router said before it hung
             router.kill()
             out = router.communicate(timeout=5)[0]
-            raise AssertionError(f"the router did not stop within 10 s of SIGINT; its output:\n{out[-3000:]}")
+            raise AssertionError(f"the router did not stop within 10 s of SIGINT; its output:\n{out[-3000:]}") from exc
         out = router.communicate(timeout=5)[0]
     assert code == 0, out
     assert f"listening on {endpoint}" in out
