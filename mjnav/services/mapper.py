@@ -30,7 +30,7 @@ import numpy as np
 
 from mjnav.control.collision import TrackedScan, TrackingParams, track_scan
 from mjnav.geometry import Pose2D
-from mjnav.mapping import OccupancyGrid, inflation_costmap, read_ros_map, write_ros_map
+from mjnav.mapping import CellState, OccupancyGrid, inflation_costmap, read_ros_map, write_ros_map
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
@@ -176,8 +176,7 @@ class MapperService(Service[MapperConfig]):
             if self.slam_mode:
                 self.seeded = self.scans > 0 or (self.static is not None and self.static.latest() is not None)
             elif self.scans:
-                model, lo = self.grid.model, self.grid.log_odds
-                self.seeded = bool(((lo < model.free_threshold) | (lo > model.occupied_threshold)).any())
+                self.seeded = bool((self.grid.states() != CellState.UNKNOWN).any())
         return self.seeded
 
     # ------------------------------------------------------------------------------------------- checkpoints
