@@ -130,6 +130,34 @@ def test_event_topics_confirm_delivery_to_the_named_subscribers(peer: Peer) -> N
     assert h.received["goal_status"][-1].state == STATUS.STATE_CANCELED and h.service.goal is None
 
 
+def test_a_lost_receipt_is_recovered_by_a_resend_that_is_delivered_once(peer: Peer) -> None:
+    """A receipt lost on the way back (here the planner's first one is dropped) gets the event sent again with the
+    same request id; the planner confirms the repeat but queues it once: three goals, three accepted."""
+    h = _planner(peer)
+    bus = h.service.bus
+    send_receipt = bus._send_receipt
+    dropped: list[str] = []
+
+    def lose_the_first(key: str, request: bytes) -> None:
+        if not dropped:
+            dropped.append(key)
+            return
+        send_receipt(key, request)
+
+    bus._send_receipt = lose_the_first  # type: ignore[method-assign]
+    goal = ros.pose_stamped(0.0, "map", Pose2D(3.45, 3.55, 0.0))
+    assert h.world.put_confirmed("goal", [goal] * 3, timeout_s=10.0)["planner"] == 3
+    assert dropped == ["robot0/goal"]
+    h.step(0.0)
+
+    def accepted() -> list[int]:
+        return [s.goal_id for s in h.received["goal_status"] if s.state == STATUS.STATE_ACCEPTED]
+
+    assert wait_until(lambda: len(accepted()) >= 3, 10.0)
+    h.step(0.2)
+    assert accepted() == [1, 2, 3]
+
+
 def test_an_event_nobody_named_receives_fails_loudly(peer: Peer) -> None:
     listener = peer()  # a subscriber that is not the planner (like the viewer) must not count as delivery
     listener.subscribe("goal")
