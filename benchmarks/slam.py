@@ -11,10 +11,8 @@ Each log (``../shared/refdata/laser2d_carmen``: intel, aces, freiburg-079, csail
 seeded noise (default σ = 0.05 m/√m, 0.05 rad/√rad, 0.02 rad/√m; :mod:`mjnav.estimation.slam_metrics`), the SLAM
 starts at the first corrected pose, and every scan's final (optimised) pose is compared with the corrected pose by
 Kümmerle et al. (2009)'s relative error over two relation sets: consecutive scans, and scans 1 m apart along the
-corrected path. The SLAM is told the noise model (``SlamConfig.odom_noise``, for its front end's odometry gate),
-as ``mjnav slam`` tells it. Figures and verdicts are means over the noise seeds (default three): one run is chaotic
-in its input (whether one loop closure is accepted changes what follows), and seed to seed the mean error moves by
-about 0.001 m.
+corrected path. Figures and verdicts are means over the noise seeds (default three): one run is chaotic in its input
+(whether one loop closure is accepted changes what follows), and seed to seed the mean error moves by about 0.001 m.
 
 Peer: the graph-mapping figures of Kümmerle et al. (2009), mean translational error (Intel 0.031 m, ACES 0.044 m,
 Freiburg 079 0.056 m, MIT CSAIL 0.004 m). They are quoted from secondary sources (the issue, and a second
@@ -138,7 +136,7 @@ def run_log(name: str, seed: int, matched: ScanMatched) -> dict[str, float]:
     n = len(log)
     ref = log.poses
     odom = corrupt_odometry(ref, np.random.default_rng(seed), DEFAULT_ODOMETRY_NOISE)
-    slam = GraphSlam(SlamConfig(odom_noise=DEFAULT_ODOMETRY_NOISE), initial_pose=ref[0])
+    slam = GraphSlam(SlamConfig(), initial_pose=ref[0])
     cpu = np.zeros(n)
     times = run_slam(
         slam,
@@ -158,7 +156,6 @@ def run_log(name: str, seed: int, matched: ScanMatched) -> dict[str, float]:
         "scans": n,
         "keyframes": slam.num_keyframes,
         "loops": slam.loop_closures,
-        "rejected": slam.rejected_matches,
         "wall_ms": float(times.mean() * 1e3),
         "wall_p99_ms": float(np.percentile(times, 99) * 1e3),
         "cpu_ms": float(cpu.mean() * 1e3),
@@ -218,8 +215,8 @@ def main() -> int:
         # floor − cycle / √3 from the corrected relative poses on these pairs.
         floor, match_err = matched.floor_m, matched.cycle_m / np.sqrt(3.0)
         print(
-            f"\n{name}: {int(r['scans'])} scans, {r['keyframes']:.0f} keyframes, {r['loops']:.0f} loop closures, "
-            f"{r['rejected']:.0f} matches dead-reckoned by the odometry gate (mean over {args.seeds} seed(s))"
+            f"\n{name}: {int(r['scans'])} scans, {r['keyframes']:.0f} keyframes, {r['loops']:.0f} loop closures "
+            f"(mean over {args.seeds} seed(s))"
         )
         print(
             f"  consecutive: {r['c_t']:.4f} ± {r['c_ts']:.4f} m, {r['c_r']:.3f} ± {r['c_rs']:.3f}°   "

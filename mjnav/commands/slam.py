@@ -6,15 +6,14 @@ Input, one of:
   carry the corrected pose as their odometry, so the odometry the SLAM sees is corrupted with seeded noise
   (``--odom-noise``, ``--seed``; model in :mod:`mjnav.estimation.slam_metrics`), and the result is scored against
   the corrected poses with Kümmerle et al.'s relative error (consecutive scans, and scan pairs 1 m apart along the
-  path). ``--odom-noise 0,0,0`` uses the log's own odometry column. The SLAM is told the noise model
-  (``SlamConfig.odom_noise``, which its front end's odometry gate uses), as a robot is told its odometry's.
+  path). ``--odom-noise 0,0,0`` uses the log's own odometry column.
 * ``--bag RUN.mcap`` — a bag recorded by ``mjnav record`` / ``mjnav demo --record``: ``<ns>/scan`` with the
   ``<ns>/odom`` pose interpolated at each scan's stamp.
 
 Output in ``--out DIR``: ``map.yaml`` + ``map.pgm`` (map_server format, trinary), ``trajectory.txt`` (one line per
 scan: ``t x y theta``, seconds, metres, radians, map frame, the poses of the final optimised graph),
 ``graph.g2o`` (the keyframe pose graph at its optimised poses, with front-end and loop-closure edges) and
-``summary.json`` (the figures printed, and the SLAM's settings under ``slam_config``).
+``summary.json``.
 
 Exit codes: 0 done; 2 bad arguments or unreadable input.
 """
@@ -22,7 +21,6 @@ Exit codes: 0 done; 2 bad arguments or unreadable input.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import sys
 import time
@@ -91,8 +89,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=parse_sigmas,
         default=None,
         metavar="ST,SR,SB",
-        help="CARMEN only: odometry noise (see above; default 0.05,0.05,0.02; 0,0,0 = the log's odometry); "
-        "the SLAM's odometry gate is told the same model",
+        help="CARMEN only: odometry noise (see above; default 0.05,0.05,0.02; 0,0,0 = the log's odometry)",
     )
     p.add_argument("--seed", type=int, default=0, help="CARMEN only: seed of the odometry noise (default 0)")
     p.add_argument("--namespace", default=None, help="bag only: robot namespace (default: the only one)")
@@ -187,12 +184,10 @@ def write_outputs(slam: GraphSlam, out: Path) -> dict[str, str]:
     return {"map": str(yaml_path), "trajectory": str(traj), "graph": str(graph)}
 
 
-def _config(args: argparse.Namespace, odom_noise: tuple[float, float, float] | None = None) -> SlamConfig:
+def _config(args: argparse.Namespace) -> SlamConfig:
     from mjnav.estimation.slam import SlamConfig
 
     kw: dict[str, Any] = {"max_range_m": args.max_range, "map_resolution_m": args.resolution}
-    if odom_noise is not None:
-        kw["odom_noise"] = tuple(odom_noise)
     if args.no_loops:
         kw["loop_candidates"] = 0
     return SlamConfig(**kw)
@@ -235,7 +230,7 @@ def run(args: argparse.Namespace) -> int:
             summary.update(
                 input=str(args.carmen), odom_noise=list(sigmas), seed=args.seed, initial_pose=reference[0].tolist()
             )
-            slam = GraphSlam(_config(args, sigmas), initial_pose=reference[0])
+            slam = GraphSlam(_config(args), initial_pose=reference[0])
         else:
             from mjnav.bag import BagError
             from mjnav.bag.scans import read_scans
@@ -263,7 +258,6 @@ def run(args: argparse.Namespace) -> int:
         scans=int(n),
         keyframes=slam.num_keyframes,
         loop_closures=slam.loop_closures,
-        rejected_matches=slam.rejected_matches,
         optimizations=slam.optimizations,
         time_per_scan_mean_ms=float(times.mean() * 1e3),
         time_per_scan_p99_ms=float(np.percentile(times, 99) * 1e3),
@@ -272,12 +266,11 @@ def run(args: argparse.Namespace) -> int:
         total_s=float(times.sum()),
         map_and_files_s=write_s,
         files=files,
-        slam_config=dataclasses.asdict(slam.config),
     )
     print(f"input:      {summary['input']} ({n} scans)")
     print(
         f"graph:      {slam.num_keyframes} keyframes, {slam.loop_closures} loop closures, "
-        f"{slam.optimizations} optimisations; {slam.rejected_matches} scan matches rejected by the odometry gate"
+        f"{slam.optimizations} optimisations"
     )
     mean_ms, p99_ms = summary["time_per_scan_mean_ms"], summary["time_per_scan_p99_ms"]
     cpu_ms, cpu_p99 = summary["cpu_per_scan_mean_ms"], summary["cpu_per_scan_p99_ms"]

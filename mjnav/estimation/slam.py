@@ -8,12 +8,7 @@ against a *local map* (the points of the last ``local_map_keyframes`` keyframes 
 correlative scan matching (Olson 2009: branch and bound over a rasterised likelihood field, a small window around
 the prediction) and the result refined by point-to-line ICP (Censi 2008) against the same points. A scan becomes
 a keyframe when the robot has moved ``keyframe_distance_m`` or turned ``keyframe_angle_rad`` since the last one;
-consecutive keyframes are joined by an edge carrying the front end's relative pose. A match must agree with the
-odometry: its difference from the prediction is gated by χ² under the odometry's noise over the step plus the
-matcher's own error (``odom_noise``, ``odom_gate_chi2``); a match outside the gate is taken for a wrong one (in a
-place where the scan fits the local map better a few decimetres off, as PL-ICP and the correlative score both
-can) and the scan is dead-reckoned instead. Every scan the front end does not place widens the next gate by one
-dead-reckoned scan's variance, so a real disagreement (wheel slip) is accepted a scan or two later.
+consecutive keyframes are joined by an edge carrying the front end's relative pose.
 
 Back end (every keyframe): every ``submap_keyframes`` consecutive keyframes form a rigid *submap* (their points in
 the frame of its first keyframe, the anchor), with the space its scans observed (free or hit, a coarse grid). A new
@@ -183,8 +178,7 @@ def _check_config(cfg: Any) -> None:
         if not math.isfinite(v):
             raise SlamError(f"{type(cfg).__name__}.{f.name} must be finite, got {v}")
         if v < 0 or (v == 0 and f.name not in _MAY_BE_ZERO):
-            bound = ">= 0" if f.name in _MAY_BE_ZERO else "> 0"
-            raise SlamError(f"{type(cfg).__name__}.{f.name} must be {bound}, got {v}")
+            raise SlamError(f"{type(cfg).__name__}.{f.name} must be > 0, got {v}")
 
 
 _MAY_BE_ZERO = {
@@ -197,7 +191,6 @@ _MAY_BE_ZERO = {
     "loop_min_travel_m",
     "loop_min_overlap",
     "optimize_min_chi2",
-    "odom_gate_chi2",
 }
 
 
@@ -283,15 +276,6 @@ class SlamConfig:
             ``loop_max_range_m``) falls, at the current estimate, in space the submap's scans observed; the match is
             scored on those points only. 0: every candidate within ``loop_search_radius_m``, nearest first, scored
             on the whole scan (the method before; on a scan from the neighbouring corridor it closes false loops).
-        odom_noise: the wheel odometry's noise, (σ_t m/√m, σ_r rad/√rad, σ_b rad/√m): over a step of d metres and
-            Δθ radians, σ_x = σ_y = σ_t·√d and σ_θ² = σ_r²·|Δθ| + σ_b²·d (the model of
-            :func:`mjnav.estimation.slam_metrics.corrupt_odometry`). The default bounds the simulator's wheel
-            odometry (0.3 % radius, 1 % wheel-base and 1 % slip errors) with room for contact slip.
-        odom_gate_chi2: a front-end match is accepted when its difference from the odometry prediction has a
-            χ² (3 degrees of freedom) below this, under the covariance of ``odom_noise`` over the step plus
-            diag(``edge_sigma_m``², ``edge_sigma_m``², ``edge_sigma_rad``²) (the matcher's own error) plus one
-            dead-reckoned scan's variance for each scan since the last accepted match. Default 16.27, the 99.9 %
-            quantile; 0 disables the gate.
         edge_sigma_m: front-end edge translational σ at zero motion, metres (a floor: the match's own σ counts
             where larger).
         edge_sigma_per_m: its growth: σ_t² = edge_sigma_m² + edge_sigma_per_m²·d, metres per √metre.
@@ -343,8 +327,6 @@ class SlamConfig:
     loop_min_score: float = 0.5
     loop_min_inliers: float = 0.6
     loop_min_overlap: float = 0.3
-    odom_noise: tuple[float, float, float] = (0.01, 0.02, 0.01)
-    odom_gate_chi2: float = 16.27
     edge_sigma_m: float = 0.01
     edge_sigma_per_m: float = 0.02
     edge_sigma_rad: float = math.radians(0.25)
@@ -361,8 +343,6 @@ class SlamConfig:
         _check_config(self)
         if len(self.laser_offset) != 3 or not all(math.isfinite(v) for v in self.laser_offset):
             raise SlamError(f"SlamConfig.laser_offset must be 3 finite numbers, got {self.laser_offset!r}")
-        if len(self.odom_noise) != 3 or not all(math.isfinite(v) and v >= 0.0 for v in self.odom_noise):
-            raise SlamError(f"SlamConfig.odom_noise must be 3 finite numbers >= 0, got {self.odom_noise!r}")
         for name in ("local_map_keyframes", "submap_keyframes", "loop_candidates", "cached_submaps"):
             if not isinstance(getattr(self, name), int):
                 raise SlamError(f"SlamConfig.{name} must be an integer")
@@ -483,8 +463,6 @@ class GraphSlam:
         self._loop_closures = 0
         self._optimizations = 0
         self._pending_chi2 = 0.0
-        self._gate_widening = 0.0  # unplaced scans since the last accepted match (+inf after a reanchor)
-        self._rejected_matches = 0
         self._grid: OccupancyGrid | None = None
         self._grid_kfs = 0
         self._grid_dirty = True
@@ -499,7 +477,6 @@ class GraphSlam:
         """
         self._odom = _pose_arg(odom_pose, "odom_pose")
         self._pose = _pose_arg(pose, "pose")
-        self._gate_widening = math.inf  # a pose set from outside: the next match is not held to the odometry
 
     # -- pickling (checkpoints) --------------------------------------------------------------------------------
 
@@ -534,11 +511,6 @@ class GraphSlam:
     def loop_closures(self) -> int:
         """Loop-closure edges accepted so far."""
         return self._loop_closures
-
-    @property
-    def rejected_matches(self) -> int:
-        """Front-end matches rejected by the odometry gate so far (those scans were dead-reckoned)."""
-        return self._rejected_matches
 
     @property
     def optimizations(self) -> int:
@@ -643,19 +615,14 @@ class GraphSlam:
             self._add_keyframe(t, scan, loop=False)
             self._record(t)
             return self._estimate(1.0, True, 0)
-        step = _relative1(self._odom, odom)
-        predicted = _compose1(self._pose, step)
-        pose, cov, score, matched, rejected = self._match_gated(scan, predicted, step)
+        predicted = _compose1(self._pose, _relative1(self._odom, odom))
+        pose, cov, score, matched = self._match_local(scan, predicted)
         self._pose, self._odom = pose, odom
         self._cov = cov
         kf = -1
         last = self._graph.poses[-1]
         d = _relative1(last, pose)
-        # A scan the gate rejected is no keyframe: at its dead-reckoned pose its points would enter the local map
-        # where the match said they are not (on a synthetic ring, 4 such keyframes in 579 scans took the front end
-        # from 0.09 m to 0.48 m ATE).
-        moved = math.hypot(d[0], d[1]) >= cfg.keyframe_distance_m or abs(d[2]) >= cfg.keyframe_angle_rad
-        if moved and not rejected:
+        if math.hypot(d[0], d[1]) >= cfg.keyframe_distance_m or abs(d[2]) >= cfg.keyframe_angle_rad:
             kf = self._add_keyframe(t, scan, loop=True)
         self._record(t)
         return self._estimate(score, matched, kf)
@@ -672,38 +639,12 @@ class GraphSlam:
     def _floor_cov(self, cov: FloatArray) -> FloatArray:
         return _floor_cov(cov, self.config.min_sigma_m, self.config.min_sigma_rad)
 
-    def _dead_reckoning(self, predicted: FloatArray) -> tuple[FloatArray, FloatArray, float, bool]:
-        sm, sr = _DEAD_RECKONING_SIGMA
-        return predicted, self._cov + np.diag([sm * sm, sm * sm, sr * sr]), 0.0, False
-
-    def _match_gated(
-        self, scan: _Scan, predicted: FloatArray, step: FloatArray
-    ) -> tuple[FloatArray, FloatArray, float, bool, bool]:
-        """The front end's match if it passes the odometry gate (see :class:`SlamConfig`), else dead reckoning;
-        the last element says whether the gate rejected the match."""
-        result = self._match_local(scan, predicted)
-        cfg = self.config
-        rejected = False
-        if result[3] and cfg.odom_gate_chi2 > 0.0:
-            st, sr, sb = cfg.odom_noise
-            d = math.hypot(step[0], step[1])
-            sm_dr, sr_dr = _DEAD_RECKONING_SIGMA
-            widening = self._gate_widening
-            var_t = st * st * d + cfg.edge_sigma_m**2 + widening * sm_dr * sm_dr
-            var_r = sr * sr * abs(step[2]) + sb * sb * d + cfg.edge_sigma_rad**2 + widening * sr_dr * sr_dr
-            e = _relative1(predicted, result[0])
-            if (e[0] * e[0] + e[1] * e[1]) / var_t + e[2] * e[2] / var_r > cfg.odom_gate_chi2:
-                self._rejected_matches += 1
-                rejected = True
-                result = self._dead_reckoning(predicted)
-        self._gate_widening = 0.0 if result[3] else self._gate_widening + 1.0
-        return (*result, rejected)
-
     def _match_local(self, scan: _Scan, predicted: FloatArray) -> tuple[FloatArray, FloatArray, float, bool]:
         """Front end: CSM then PL-ICP against the local map; the prediction when both fail."""
         cfg = self.config
         local = self._local
-        dead_reckoning = self._dead_reckoning(predicted)
+        sm, sr = _DEAD_RECKONING_SIGMA
+        dead_reckoning = (predicted, self._cov + np.diag([sm * sm, sm * sm, sr * sr]), 0.0, False)
         if local is None or scan.points.shape[0] < 3:
             return dead_reckoning
         matcher, ref = local

@@ -58,9 +58,6 @@ class SlamServiceConfig:
             2 m window reached the next corridor: on a there-and-back mission (seed 2) a false closure put the
             map 0.4 m off (ATE 0.37 m, map accuracy 0.39); at 0.5 m / 10° 122 closures brought ATE from 1.7 cm
             (no closures) to 0.9 cm. A closure missed for a larger drift costs less than a false one.
-        odom_noise: the wheel odometry's noise (σ_t m/√m, σ_r rad/√rad, σ_b rad/√m) for the front end's odometry
-            gate (:class:`mjnav.estimation.slam.SlamConfig`); the default bounds the simulator's odometry.
-        odom_gate_chi2: the gate's χ² threshold (3 degrees of freedom; 16.27 = 99.9 %; 0 disables it).
         use_gyro: take the heading increments from the IMU's gyro instead of the wheels (distance stays the
             wheels'): :class:`mjnav.motion.gyrodometry.GyroOdometry`, its bias learnt at standstill.
         checkpoint_period_s: checkpoint interval (sim s) of the mapping state in the run's state directory
@@ -80,8 +77,6 @@ class SlamServiceConfig:
     loop_closure: bool = True
     loop_window_m: float = 0.5
     loop_window_rad: float = math.radians(10.0)
-    odom_noise: tuple[float, float, float] = SlamConfig.odom_noise
-    odom_gate_chi2: float = SlamConfig.odom_gate_chi2
     use_gyro: bool = True
     checkpoint_period_s: float = 2.0
 
@@ -95,7 +90,6 @@ class SlamServiceConfig:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if not self.checkpoint_period_s >= 0:
             raise ValueError(f"checkpoint_period_s must be >= 0, got {self.checkpoint_period_s}")
-        SlamConfig(odom_noise=self.odom_noise, odom_gate_chi2=self.odom_gate_chi2)  # SlamError names a bad value
 
 
 class SlamService(Service[SlamServiceConfig]):
@@ -259,8 +253,6 @@ class SlamService(Service[SlamServiceConfig]):
             loop_candidates=SlamConfig().loop_candidates if cfg.loop_closure else 0,
             loop_window_m=cfg.loop_window_m,
             loop_window_rad=cfg.loop_window_rad,
-            odom_noise=cfg.odom_noise,
-            odom_gate_chi2=cfg.odom_gate_chi2,
         )
         self.log.info("mapping from (%.2f, %.2f, %.1f°)", initial[0], initial[1], math.degrees(initial[2]))
         return GraphSlam(slam_cfg, initial_pose=initial)

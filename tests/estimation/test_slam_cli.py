@@ -46,9 +46,6 @@ def test_carmen_slice(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert main(["slam", "--carmen", str(_intel()), "--limit", "120", "--seed", "1", "--quiet", "--out", str(out)]) == 0
     summary = _check_outputs(out, 120)
     assert summary["odom_noise"] == [0.05, 0.05, 0.02] and summary["seed"] == 1
-    # The SLAM's odometry gate is told the noise the odometry was corrupted with.
-    assert summary["slam_config"]["odom_noise"] == [0.05, 0.05, 0.02]
-    assert 0 <= summary["rejected_matches"] < 120
     rpe = summary["rpe_consecutive"]
     assert rpe["relations"] == 119
     # SLAM beats the noisy odometry it was given, on both parts of the error.
