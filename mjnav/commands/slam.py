@@ -13,7 +13,7 @@ Input, one of:
 Output in ``--out DIR``: ``map.yaml`` + ``map.pgm`` (map_server format, trinary), ``trajectory.txt`` (one line per
 scan: ``t x y theta``, seconds, metres, radians, map frame, the poses of the final optimised graph),
 ``graph.g2o`` (the keyframe pose graph at its optimised poses, with front-end and loop-closure edges) and
-``summary.json``.
+``summary.json`` (the figures printed, and the SLAM's settings under ``slam_config``).
 
 Exit codes: 0 done; 2 bad arguments or unreadable input.
 """
@@ -21,6 +21,7 @@ Exit codes: 0 done; 2 bad arguments or unreadable input.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import time
@@ -266,6 +267,7 @@ def run(args: argparse.Namespace) -> int:
         total_s=float(times.sum()),
         map_and_files_s=write_s,
         files=files,
+        slam_config=dataclasses.asdict(slam.config),
     )
     print(f"input:      {summary['input']} ({n} scans)")
     print(

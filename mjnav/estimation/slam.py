@@ -178,7 +178,8 @@ def _check_config(cfg: Any) -> None:
         if not math.isfinite(v):
             raise SlamError(f"{type(cfg).__name__}.{f.name} must be finite, got {v}")
         if v < 0 or (v == 0 and f.name not in _MAY_BE_ZERO):
-            raise SlamError(f"{type(cfg).__name__}.{f.name} must be > 0, got {v}")
+            bound = ">= 0" if f.name in _MAY_BE_ZERO else "> 0"
+            raise SlamError(f"{type(cfg).__name__}.{f.name} must be {bound}, got {v}")
 
 
 _MAY_BE_ZERO = {

@@ -189,8 +189,10 @@ def test_bad_input_is_a_typed_error() -> None:
         slam.update(0.0, (0.0, 0.0, 0.0), [1.0], [0.0], range_min_m=5.0, range_max_m=1.0)
     with pytest.raises(SlamError):
         slam.occupancy_grid()
-    with pytest.raises(SlamError):
+    with pytest.raises(SlamError, match="match_window_m must be > 0"):
         SlamConfig(match_window_m=-1.0)
+    with pytest.raises(SlamError, match="loop_min_overlap must be >= 0"):  # 0 is allowed: say so
+        SlamConfig(loop_min_overlap=-0.1)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

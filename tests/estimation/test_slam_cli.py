@@ -46,6 +46,8 @@ def test_carmen_slice(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert main(["slam", "--carmen", str(_intel()), "--limit", "120", "--seed", "1", "--quiet", "--out", str(out)]) == 0
     summary = _check_outputs(out, 120)
     assert summary["odom_noise"] == [0.05, 0.05, 0.02] and summary["seed"] == 1
+    # The summary records the settings the SLAM ran with (here --max-range's default).
+    assert summary["slam_config"]["max_range_m"] == 30.0 and summary["slam_config"]["map_resolution_m"] == 0.05
     rpe = summary["rpe_consecutive"]
     assert rpe["relations"] == 119
     # SLAM beats the noisy odometry it was given, on both parts of the error.
