@@ -122,17 +122,17 @@ TOPICS: dict[str, Topic] = {
             "nav_msgs/msg/Odometry",
             _S,
             "sim",
-            "50 Hz",
+            "20 Hz",
             "Wheel-encoder odometry, `odom` → `base_link`, drifts",
         ),
         Topic("imu", "sensor_msgs/msg/Imu", _S, "sim", "100 Hz", "Gyro and accelerometer, frame `imu`"),
-        Topic("joint_states", "sensor_msgs/msg/JointState", _S, "sim", "50 Hz", "Wheel positions and rates"),
+        Topic("joint_states", "sensor_msgs/msg/JointState", _S, "sim", "20 Hz", "Wheel positions and rates"),
         Topic(
             "tf",
             "tf2_msgs/msg/TFMessage",
             _S,
             "sim, slam",
-            "50 Hz, 10 Hz",
+            "20 Hz, 10 Hz",
             "`odom` → `base_link` (sim), `map` → `odom` (slam)",
         ),
         Topic(
@@ -140,7 +140,7 @@ TOPICS: dict[str, Topic] = {
             "geometry_msgs/msg/PoseStamped",
             _S,
             "sim",
-            "50 Hz",
+            "20 Hz",
             "True pose `map` → `base_link`",
         ),
         Topic(
@@ -148,7 +148,7 @@ TOPICS: dict[str, Topic] = {
             "geometry_msgs/msg/PoseStamped",
             _S,
             "sim",
-            "50 Hz",
+            "20 Hz",
             "True pose `map` → `base_link` for evaluation only (mjnav demo, benchmarks); no navigation service "
             "reads it",
         ),

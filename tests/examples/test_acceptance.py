@@ -178,4 +178,4 @@ def test_plain_clients_bags_and_sigint_during_mjnav_up(tmp_path: Path) -> None:
                 assert len(m.ros_msg.ranges) > 0
     for name in ["scan", "odom", "map"]:
         assert counts.get(f"/{stack.namespace}/{name}", 0) > 0, f"no {name} in the bag: {counts}"
-    assert counts[f"/{stack.namespace}/odom"] > 100  # 50 Hz for about 6 s
+    assert counts[f"/{stack.namespace}/odom"] > 40  # 20 Hz for about 6 s at rtf 1: a third of it, for a loaded machine

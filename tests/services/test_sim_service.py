@@ -174,3 +174,31 @@ def test_the_sim_service_records_while_it_runs(router_endpoint: str, peer: Calla
     # One frame every 0.1 s of sim time, the first at 0 (±1 for the step the signal arrived in).
     assert abs(frames.shape[0] - (math.floor(float(stopped.group(1)) * 10.0) + 1)) <= 1
     assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean() > 0.05  # the carts move
+
+
+@pytest.mark.parametrize("rates", [{}, {"odom_rate_hz": 50.0}, {"odom_rate_hz": 20.0, "imu_rate_hz": 60.0}])
+def test_each_clock_goes_out_at_its_own_tick_whatever_the_valid_rates(
+    rates: dict[str, float], peer: Callable[..., Bus]
+) -> None:
+    from mjnav.services.sim import SimBridge, SimConfig
+    from mjnav.sim import SimRunner, Simulator
+
+    sim = Simulator("empty", seed=0)
+    bus = peer()
+    bridge = SimBridge(sim, bus, SimConfig(world="empty", **rates))
+    bridge.attach(SimRunner(sim, rtf=None))
+    tick = bridge.clock_period_s
+    for k in range(1, 21):
+        bridge.advance(k * tick)  # one lockstep round
+        assert bus.sim_time == pytest.approx(k * tick), f"round {k}: the clock went out at {bus.sim_time}"
+
+
+@pytest.mark.parametrize(
+    "rates", [{"imu_rate_hz": 50.0}, {"odom_rate_hz": 30.0, "imu_rate_hz": 30.0}, {"clock_rate_hz": 30.0}]
+)
+def test_rates_that_put_clock_ticks_off_the_publishing_grid_are_refused(rates: dict[str, float]) -> None:
+    from mjnav.services.sim import SimConfig
+
+    # imu_rate_hz = 50 with the 20 Hz clock published the clock of 0.05 s at 0.06 s and stalled every lockstep round
+    with pytest.raises(ValueError, match="whole multiple of clock_rate_hz"):
+        SimConfig(world="empty", **rates)
