@@ -1,8 +1,10 @@
 """The robot's pose in ``map`` as the navigation services read it, from one configured source.
 
-``slam`` composes SLAM's newest ``map → odom`` (on ``tf``) with the sim's wheel odometry (``odom``), the way Nav2
-looks up ``map → base_link`` through TF: the pose is as fresh as the odometry, not one SLAM step late, and a scan
-is placed at the odometry of its own stamp. ``ground_truth`` and ``odom`` read that topic as it is.
+``slam`` composes SLAM's newest ``map → odom`` with the sim's wheel odometry ``odom → base_link``, both read from
+``tf``, the way Nav2 looks up ``map → base_link`` through TF: the pose is as fresh as the odometry, not one SLAM
+step late, and a scan is placed at the odometry of its own stamp. (The ``odom`` topic carries the same transform;
+subscribing to both cost every navigation service 20 callbacks per sim second for nothing.) ``ground_truth`` and
+``odom`` read that topic as it is.
 
 Subscription callbacks run in Zenoh's threads and only append; :meth:`PoseInput.update` (called at the start of a
 service's step) moves what arrived into the histories, so a step sees one consistent state.
@@ -27,7 +29,7 @@ class PoseInput:
 
     Args:
         bus: the service's bus (the subscriptions are made here).
-        source: ``slam`` (``map → odom`` on ``tf`` ∘ ``odom``), ``ground_truth`` or ``odom``.
+        source: ``slam`` (``map → odom`` ∘ ``odom → base_link``, both on ``tf``), ``ground_truth`` or ``odom``.
         horizon_s: how much history to keep, seconds.
     """
 
@@ -40,7 +42,6 @@ class PoseInput:
         self._horizon_s = horizon_s
         self.reset()
         if source == "slam":
-            bus.subscribe("odom", callback=self._on_pose)
             bus.subscribe("tf", callback=self._on_tf)
         else:
             bus.subscribe(ros.POSE_TOPICS[source], callback=self._on_pose)
@@ -59,6 +60,8 @@ class PoseInput:
         for t in msg.transforms:
             if t.header.frame_id == "map" and t.child_frame_id == "odom":
                 self._pending_tf.append((ros.seconds(t.header.stamp), ros.transform2d(t.transform)))
+            elif t.header.frame_id == "odom" and t.child_frame_id == "base_link":
+                self._pending.append((ros.seconds(t.header.stamp), ros.transform2d(t.transform)))
 
     def update(self) -> None:
         """Take in what arrived since the last call."""

@@ -263,10 +263,10 @@ def _nan_laden(msgtype: str, rng: np.random.Generator) -> object:
 SUBSCRIBED = {
     "sim": ["cmd_vel"],
     "slam": ["clock", "odom", "scan", "initialpose"],
-    "mapper": ["clock", "scan", "pose"],
-    "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "pose"],
+    "mapper": ["clock", "scan", "tf"],
+    "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "tf"],
     "smoother": ["clock", "plan", "costmap"],
-    "controller": ["clock", "path", "pose", "scan", "goal_status", "map"],
+    "controller": ["clock", "path", "tf", "scan", "goal_status", "map"],
     "viz": ["truth", "scan", "map", "plan", "path", "costmap", "goal", "goal_status", "sim_status"],
 }
 FUZZ_PER_KEY = 1000
