@@ -496,6 +496,26 @@ class GraphSlam:
             # The same keyframes at the same poses as when it was last built (only a new keyframe moves poses).
             self._rebuild_local_map()
 
+    #: State lists that only ever grow, their items never changed once made: the keyframes' scans and the finished
+    #: submaps (the bulk of the state: 5.4 of 5.7 MB after 288 keyframes). A checkpoint writes each item once.
+    APPEND_ONLY: tuple[str, ...] = ("_kf_scans", "_submaps")
+
+    def split_state(self) -> tuple[dict[str, Any], dict[str, list[Any]]]:
+        """The picklable state as (the rest, the :attr:`APPEND_ONLY` lists by name), for checkpoints that append
+        the lists' new items and rewrite only the rest (:meth:`from_split_state` puts them together again)."""
+        state = self.__getstate__()
+        return state, {name: state.pop(name) for name in self.APPEND_ONLY}
+
+    @classmethod
+    def from_split_state(cls, state: dict[str, Any], lists: dict[str, list[Any]]) -> GraphSlam:
+        """The SLAM :meth:`split_state` described, continuing exactly as the original would."""
+        missing = set(cls.APPEND_ONLY) - set(lists)
+        if missing:
+            raise SlamError(f"split state lacks {sorted(missing)}")
+        slam = cls.__new__(cls)
+        slam.__setstate__({**state, **{name: list(lists[name]) for name in cls.APPEND_ONLY}})
+        return slam
+
     # -- public state ------------------------------------------------------------------------------------------
 
     @property

@@ -14,7 +14,8 @@ newest ``map → odom`` composed with the newest odometry, so the estimate follo
 ``tf_static`` every second (for late joiners: Zenoh keeps no latched messages).
 
 In mapping mode the SLAM state is checkpointed in the run's state directory every ``checkpoint_period_s``, so a
-restarted slam service resumes the same map and pose graph.
+restarted slam service resumes the same map and pose graph. The checkpoint grows by what is new
+(:class:`SlamCheckpoint`): each keyframe's scan and each finished submap is written once.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import os
 import pickle
 from collections import deque
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -123,6 +125,7 @@ class SlamService(Service[SlamServiceConfig]):
         self.failures = 0
         self.map_to_odom: np.ndarray | None = None  # (x, y, θ) once the estimate started
         self.start: tuple[np.ndarray, np.ndarray, Pose2D | None] | None = None  # (map pose, cov, odom then)
+        self.checkpoint: SlamCheckpoint | None = None
         self._restore()
         if self.start is None and self.map_to_odom is None and cfg.initial_pose:
             sx, syaw = cfg.initial_sigma
@@ -293,33 +296,99 @@ class SlamService(Service[SlamServiceConfig]):
 
     # ------------------------------------------------------------------------------------------ checkpoint
 
-    def _checkpoint_file(self) -> Any:
-        return None if self.state_dir is None else self.state_dir / "slam.pickle"
-
     def _checkpoint(self) -> None:
-        """Pickle the mapping state (pose graph, keyframes, map→odom) atomically into the state directory."""
-        path = self._checkpoint_file()
-        if path is None or self.slam is None:
+        """Checkpoint the mapping state (pose graph, keyframes, map → odom) into the state directory."""
+        if self.state_dir is None or self.slam is None:
             return
-        tmp = path.with_suffix(".tmp")
-        with tmp.open("wb") as f:
-            pickle.dump({"slam": self.slam, "map_to_odom": self.map_to_odom, "scans": self.scans}, f)
-        os.replace(tmp, path)
+        if self.checkpoint is None:
+            self.checkpoint = SlamCheckpoint(self.state_dir)
+        self.checkpoint.save(self.slam, {"map_to_odom": self.map_to_odom, "scans": self.scans})
 
     def _restore(self) -> None:
         """Resume from this run's checkpoint (written by this service's previous process), if any."""
-        path = self._checkpoint_file()
-        if path is None or not path.exists() or self.config.mode != "mapping":
+        if self.state_dir is None or self.config.mode != "mapping":
             return
+        checkpoint = SlamCheckpoint(self.state_dir)
         try:
-            with path.open("rb") as f:
-                state = pickle.load(f)  # our own file in our own run's state directory
-            self.slam, self.map_to_odom, self.scans = state["slam"], state["map_to_odom"], int(state["scans"])
-        except (OSError, pickle.UnpicklingError, KeyError, AttributeError, EOFError) as exc:
-            self.log.warning("SLAM checkpoint %s unreadable (%s): waiting for initialpose", path, exc)
+            loaded = checkpoint.load()  # our own files in our own run's state directory
+            if loaded is None:
+                return
+            slam, extra = loaded
+            self.map_to_odom, self.scans = extra["map_to_odom"], int(extra["scans"])
+        except (OSError, pickle.UnpicklingError, KeyError, AttributeError, EOFError, TypeError, SlamError) as exc:
+            self.log.warning("SLAM checkpoint in %s unreadable (%s): waiting for initialpose", self.state_dir, exc)
             return
-        assert self.slam is not None
-        self.log.info("resumed SLAM from checkpoint %s (%d keyframes)", path, self.slam.num_keyframes)
+        self.slam, self.checkpoint = slam, checkpoint
+        self.log.info("resumed SLAM from checkpoint in %s (%d keyframes)", self.state_dir, slam.num_keyframes)
+
+
+class SlamCheckpoint:
+    """A :class:`GraphSlam` checkpointed in a directory by what is new since the last save.
+
+    ``slam.log`` gets each item of the SLAM's append-only lists (keyframe scans, finished submaps:
+    :attr:`GraphSlam.APPEND_ONLY`) once, as pickled ``(list, index, item)`` records; ``slam.pickle`` holds the rest
+    (pose graph, occupancy grid, trajectory, the caller's ``extra``) and the length of the log it relies on, and is
+    replaced atomically after the log was synced. A crash in between leaves records past that length: the next load
+    ignores them and the next save overwrites them. A save costs the new keyframes plus the rest (after 288
+    keyframes on the test ring: 0.3 instead of 5.7 MB).
+    """
+
+    def __init__(self, directory: Path) -> None:
+        self.log_path = directory / "slam.log"
+        self.state_path = directory / "slam.pickle"
+        self._slam: GraphSlam | None = None  # the SLAM the log belongs to
+        self._counts: dict[str, int] = {}  # its items of each list in the log
+        self._log_bytes = 0
+
+    def save(self, slam: GraphSlam, extra: dict[str, Any]) -> None:
+        """Append ``slam``'s new list items to the log, then replace the state file (``extra`` goes with it)."""
+        state, lists = slam.split_state()
+        counts = {name: len(items) for name, items in lists.items()}
+        if slam is not self._slam:  # another mapping: the log starts afresh
+            self._slam, self._counts, self._log_bytes = slam, dict.fromkeys(counts, 0), 0
+        with os.fdopen(os.open(self.log_path, os.O_RDWR | os.O_CREAT, 0o644), "r+b") as f:
+            f.truncate(self._log_bytes)  # records of a save that did not finish
+            f.seek(self._log_bytes)
+            for name, items in lists.items():
+                for i in range(self._counts[name], len(items)):
+                    pickle.dump((name, i, items[i]), f, protocol=pickle.HIGHEST_PROTOCOL)
+            f.flush()
+            os.fsync(f.fileno())
+            log_bytes = f.tell()
+        tmp = self.state_path.with_suffix(".tmp")
+        with tmp.open("wb") as f:
+            top = {"state": state, "counts": counts, "log_bytes": log_bytes, "extra": extra}
+            pickle.dump(top, f, protocol=pickle.HIGHEST_PROTOCOL)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, self.state_path)
+        self._counts, self._log_bytes = counts, log_bytes
+
+    def load(self) -> tuple[GraphSlam, dict[str, Any]] | None:
+        """The saved SLAM and ``extra``, or None without a checkpoint; the next :meth:`save` appends to it.
+
+        Raises:
+            SlamError: the log does not hold what the state file relies on.
+            OSError, pickle.UnpicklingError, EOFError: unreadable files.
+        """
+        if not self.state_path.exists():
+            return None
+        with self.state_path.open("rb") as f:
+            top = pickle.load(f)
+        counts, log_bytes = dict(top["counts"]), int(top["log_bytes"])
+        lists: dict[str, list[Any]] = {name: [] for name in GraphSlam.APPEND_ONLY}
+        with self.log_path.open("rb") as f:
+            while f.tell() < log_bytes:
+                name, i, item = pickle.load(f)
+                if name not in lists or i != len(lists[name]):
+                    raise SlamError(f"{self.log_path}: record {name}[{i}] out of order")
+                lists[name].append(item)
+        found = {name: len(items) for name, items in lists.items()}
+        if found != counts:
+            raise SlamError(f"{self.log_path} holds {found} items, the state needs {counts}")
+        slam = GraphSlam.from_split_state(top["state"], lists)
+        self._slam, self._counts, self._log_bytes = slam, counts, log_bytes
+        return slam, dict(top["extra"])
 
 
 def _between(a: Pose2D, b: Pose2D) -> Any:
