@@ -45,7 +45,8 @@ class ControllerConfig:
 
     Attributes:
         rate_hz: command rate (sim time).
-        pose_source: ``slam`` (SLAM's ``map → odom`` on ``tf`` ∘ ``odom``, see :mod:`mjnav.runtime.pose`),
+        pose_source: ``slam`` (SLAM's ``map → odom`` ∘ the sim's ``odom → base_link``, both on ``tf``; see
+            :mod:`mjnav.runtime.pose`),
             ``ground_truth`` (the sim's truth) or ``odom``.
         max_speed_mps: cruise speed v_max.
         lookahead_gain_s, min_lookahead_m, max_lookahead_m: L = clamp(v·g, L_min, L_max).

@@ -286,10 +286,11 @@ def test_controller_stops_without_a_recent_scan(peer: Peer) -> None:
 
 
 def _send_slam_pose(h: Harness, t: float, map_to_odom: Pose2D, odom: Pose2D, tf_t: float | None = None) -> None:
-    """What the navigation services read on ``pose_source = slam``: SLAM's map → odom on tf and the odometry."""
+    """What the navigation services read on ``pose_source = slam``: SLAM's map → odom and the sim's odometry
+    (odom → base_link), both on tf."""
     tf_stamp = t if tf_t is None else tf_t
     h.send("tf", ros.tf_message(ros.transform_stamped(tf_stamp, "map", "odom", map_to_odom)))
-    h.send("odom", ros.odometry(t, odom, 0.0, 0.0))
+    h.send("tf", ros.tf_message(ros.transform_stamped(t, "odom", "base_link", odom)))
 
 
 def test_controller_on_slam_composes_map_to_odom_with_fresh_odometry(peer: Peer) -> None:
@@ -313,7 +314,7 @@ def test_controller_on_slam_composes_map_to_odom_with_fresh_odometry(peer: Peer)
     assert h.received["cmd_vel"][-1].angular.z < -0.05
     # SLAM goes silent: odometry alone is not a pose in map; once map → odom is older than pose_timeout_s, stop.
     h.send("scan", _clear_scan(1.7))
-    h.send("odom", ros.odometry(1.7, Pose2D(0.3, 0.0, 0.0), 0.0, 0.0))
+    h.send("tf", ros.tf_message(ros.transform_stamped(1.7, "odom", "base_link", Pose2D(0.3, 0.0, 0.0))))
     h.step(1.7, {"cmd_vel": 3})
     assert h.received["cmd_vel"][-1].linear.x == 0.0
 
