@@ -202,3 +202,23 @@ def test_rates_that_put_clock_ticks_off_the_publishing_grid_are_refused(rates: d
     # imu_rate_hz = 50 with the 20 Hz clock published the clock of 0.05 s at 0.06 s and stalled every lockstep round
     with pytest.raises(ValueError, match="whole multiple of clock_rate_hz"):
         SimConfig(world="empty", **rates)
+
+
+@pytest.mark.parametrize(
+    "rates",
+    [
+        {"clock_rate_hz": 40.0, "imu_rate_hz": 200.0},
+        {"clock_rate_hz": 80.0, "odom_rate_hz": 80.0, "imu_rate_hz": 160.0},
+    ],
+)
+def test_a_clock_off_the_physics_steps_is_refused_when_the_sim_is_wired(
+    rates: dict[str, float], peer: Callable[..., Bus]
+) -> None:
+    from mjnav.services.sim import SimBridge, SimConfig
+    from mjnav.sim import SimRunner, Simulator
+
+    # 40 Hz passes the rate check (200 = 5 x 40) but is 12.5 steps of 2 ms: clocks would go out late or never.
+    sim = Simulator("empty", seed=0)
+    bridge = SimBridge(sim, peer(), SimConfig(world="empty", **rates))
+    with pytest.raises(ValueError, match="whole number of 2 ms physics steps"):
+        bridge.attach(SimRunner(sim, rtf=None))
