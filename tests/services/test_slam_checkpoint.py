@@ -32,6 +32,17 @@ class _Ring:
         return est.pose
 
 
+def _saved(tmp_path: Path, scans_fed: int) -> tuple[_Ring, GraphSlam, SlamCheckpoint]:
+    """A SLAM fed the ring's first ``scans_fed`` scans and saved once in ``tmp_path``."""
+    ring = _Ring()
+    slam = ring.new()
+    saver = SlamCheckpoint(tmp_path)
+    for k in range(scans_fed):
+        ring.update(slam, k)
+    saver.save(slam, {"scans": scans_fed})
+    return ring, slam, saver
+
+
 def test_a_restored_checkpoint_continues_exactly_and_each_save_writes_only_what_is_new(tmp_path: Path) -> None:
     ring = _Ring()
     slam = ring.new()
@@ -62,12 +73,7 @@ def test_a_restored_checkpoint_continues_exactly_and_each_save_writes_only_what_
 
 
 def test_a_save_cut_short_is_ignored_and_overwritten_by_the_next(tmp_path: Path) -> None:
-    ring = _Ring()
-    slam = ring.new()
-    saver = SlamCheckpoint(tmp_path)
-    for k in range(60):
-        ring.update(slam, k)
-    saver.save(slam, {"scans": 60})
+    ring, slam, saver = _saved(tmp_path, 60)
     good = saver.log_path.stat().st_size
     with saver.log_path.open("ab") as f:  # a crash after appending records, before the state file was replaced
         f.write(b"\x80\x05torn record")
@@ -102,12 +108,7 @@ def test_a_new_mapping_starts_the_log_afresh(tmp_path: Path) -> None:
 
 
 def test_a_log_that_lacks_what_the_state_needs_is_refused(tmp_path: Path) -> None:
-    ring = _Ring()
-    slam = ring.new()
-    saver = SlamCheckpoint(tmp_path)
-    for k in range(60):
-        ring.update(slam, k)
-    saver.save(slam, {})
+    _, _, saver = _saved(tmp_path, 60)
     saver.log_path.write_bytes(saver.log_path.read_bytes()[: saver.log_path.stat().st_size // 2])
     with pytest.raises((SlamError, EOFError, pickle.UnpicklingError)):
         SlamCheckpoint(tmp_path).load()
@@ -115,12 +116,7 @@ def test_a_log_that_lacks_what_the_state_needs_is_refused(tmp_path: Path) -> Non
 
 
 def test_a_save_does_not_rewrite_what_earlier_saves_wrote(tmp_path: Path) -> None:
-    ring = _Ring()
-    slam = ring.new()
-    saver = SlamCheckpoint(tmp_path)
-    for k in range(60):
-        ring.update(slam, k)
-    saver.save(slam, {})
+    ring, slam, saver = _saved(tmp_path, 60)
     n = saver.log_path.stat().st_size
     saver.log_path.write_bytes(b"X" * n)  # a marker in place of the records written so far
     for k in range(60, 120):
