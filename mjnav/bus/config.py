@@ -113,6 +113,11 @@ class BusConfig:
         cfg.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
         cfg.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
         cfg.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast_scouting))
+        # Zenoh's shared-memory transport (on by default: payloads over 3 KB go through a 16 MB pool in /dev/shm)
+        # maps segments that closing a session does not release (+4 open segments, +39 MB per session in a process
+        # that opens many: tests, benchmarks) and that a killed process leaves in /dev/shm; it bought no measurable
+        # speed here (interleaved maze runs). Loopback TCP carries everything.
+        cfg.insert_json5("transport/shared_memory/enabled", "false")
         if self.mode != "router":
             if self.connect_timeout_s is None:
                 # Keep retrying the router instead of failing when a service starts before it.
