@@ -164,3 +164,25 @@ def test_a_staged_bus_delivers_a_message_only_at_a_clock_after_it_was_sent(peer:
     send(0.5, 7.0)  # sent before the sim restarted (the clock went back): old, not early
     b.commit(0.0)
     assert twist.take().linear.x == 0.5
+
+
+def test_a_network_thread_keeps_its_python_state_between_messages(peer: Peer) -> None:
+    """Callbacks run in Zenoh's own threads; entering Python there made and deleted a thread state per message (a
+    16 KB frame stack mapped and unmapped each time). Kept, a thread's state (and so its thread-local data)
+    outlives one callback."""
+    a, b = peer(), peer()
+    local = threading.local()
+    seen: list[int] = []
+
+    def on_goal(_msg: object) -> None:
+        seen.append(getattr(local, "calls", 0))  # callbacks this thread made before, as far as its state knows
+        local.calls = seen[-1] + 1
+
+    b.subscribe("goal", callback=on_goal)
+    pub = a.publisher("goal")
+    assert pub.wait_for_subscribers(5.0)
+    for i in range(40):
+        pub.put(ros.pose_stamped(float(i), "map", Pose2D(float(i), 0.0, 0.0)))
+    assert wait_until(lambda: len(seen) == 40, 5.0)
+    # Zenoh runs the callbacks on its few network threads: one of them made at least 40 / 4 of the calls.
+    assert max(seen) >= 9, seen
