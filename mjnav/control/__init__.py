@@ -6,7 +6,7 @@ All trackers share one interface: ``compute(pose, speed_mps, path, obstacle_dist
 
 from mjnav.control.errors import ControlDesignError, PathError
 from mjnav.control.lqr import LQR, LQRTracker, LQRTrackerParams, lateral_error_model
-from mjnav.control.obstacles import nearest_obstacle_ahead
+from mjnav.control.obstacles import moving_away, nearest_obstacle_ahead
 from mjnav.control.pid import PID, PIDTracker, PIDTrackerParams
 from mjnav.control.pure_pursuit import PurePursuit, PurePursuitParams, PursuitStatus
 from mjnav.control.regulation import (
@@ -42,6 +42,7 @@ __all__ = [
     "clamp_yaw_rate",
     "curvature_regulated_speed",
     "lateral_error_model",
+    "moving_away",
     "nearest_obstacle_ahead",
     "proximity_regulated_speed",
     "pursuit_curvature",

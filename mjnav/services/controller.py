@@ -1,6 +1,7 @@
 """The controller service: pure pursuit on ``path`` → ``cmd_vel`` at ``rate_hz`` of sim time.
 
-Speed is regulated by curvature and by the nearest obstacle the lidar sees in front (``scan``); the robot slows on
+Speed is regulated by curvature and by the nearest obstacle the lidar sees in front (``scan``; returns of an obstacle
+moving away from the robot do not count: the collision check below predicts them); the robot slows on
 approach and stops within ``goal_tolerance_m`` of the goal; when the goal has an orientation it then turns in place
 to the goal's yaw (within ``yaw_goal_tolerance_rad``; an all-zero quaternion means any heading) and reports
 ``reached`` on ``goal_status``. Once within the xy tolerance the goal stays latched there (Nav2's stateful goal
@@ -26,7 +27,7 @@ from typing import Any, Literal
 import numpy as np
 from scipy.ndimage import maximum_filter
 
-from mjnav.control import PathError, PurePursuit, PurePursuitParams, nearest_obstacle_ahead
+from mjnav.control import PathError, PurePursuit, PurePursuitParams, moving_away, nearest_obstacle_ahead
 from mjnav.control.collision import CollisionCheckParams, TrackedScan, TrackingParams, safe_command, track_scan
 from mjnav.geometry import Pose2D, wrap_angle
 from mjnav.mapping.frame import GridFrame
@@ -60,7 +61,8 @@ class ControllerConfig:
         rotate_gain_per_s: turn rate per radian of heading error, ω = k·e, clamped to
             [``rotate_min_radps``, ``rotate_max_radps``] in magnitude.
         robot_radius_m: subtracted from lidar ranges to get the distance from the robot's edge.
-        front_sector_rad: full width of the sector in front whose nearest return slows the robot.
+        front_sector_rad: full width of the sector in front whose nearest return slows the robot (returns the
+            tracker sees moving away from the robot left out).
         pose_timeout_s: stop when the newest pose is older than this (sim seconds).
         path_timeout_s: stop when no path arrived for this long (sim seconds; the planner re-sends every second).
         lost_distance_m: stop when the robot is further than this from the path.
@@ -319,7 +321,7 @@ class ControllerService(Service[ControllerConfig]):
                 pose,
                 self.speed,
                 path,
-                self._obstacle_distance(),
+                self._obstacle_distance(pose),
                 obstacles_xy=None if self.obstacles is None else self.obstacles.points,
                 chord_clearance_m=self.config.robot_radius_m + self.config.chord_margin_m,
             )
@@ -396,17 +398,27 @@ class ControllerService(Service[ControllerConfig]):
             )
         )
 
-    def _obstacle_distance(self) -> float:
+    def _obstacle_distance(self, pose: Pose2D) -> float:
+        """d_O of the proximity heuristic: the nearest return of the newest scan in the front sector, metres (from
+        the robot's edge; inf without one), leaving out the returns the tracker sees moving away from the robot
+        (:func:`mjnav.control.moving_away`): a cart that crosses the robot's way and leaves it is no reason to
+        creep behind it, and the collision check, which predicts its motion, still keeps the robot off it."""
         scan = self.scan_sub.latest()
         if scan is None:
             return math.inf
         angles = scan.angle_min + scan.angle_increment * np.arange(len(scan.ranges))
+        ignore = None
+        tracked = self.obstacles
+        if tracked is not None and tracked.stamp_s == ros.seconds(scan.header.stamp):  # the same scan, tracked
+            ignore = np.zeros(len(scan.ranges), dtype=bool)
+            ignore[tracked.beams[moving_away(tracked.points, tracked.velocities, (pose.x, pose.y))]] = True
         return nearest_obstacle_ahead(
             angles,
             scan.ranges,
             sector_rad=self.config.front_sector_rad,
             range_min_m=float(scan.range_min),
             robot_radius_m=self.config.robot_radius_m,
+            ignore=ignore,
         )
 
     def _report_reached(self, now: float) -> None:

@@ -356,6 +356,44 @@ def test_controller_fails_a_goal_without_progress_or_planner(peer: Peer) -> None
     assert "planner" in failed.error_text
 
 
+def test_controller_does_not_creep_behind_a_cart_that_has_crossed_its_way(peer: Peer) -> None:
+    """Proximity heuristic and moving obstacles: a cart (1.0 m x 0.7 m) crosses the robot's way 0.5 m ahead at
+    0.8 m/s and has just left it; its near corner is 0.31 m from the robot's edge, in the front sector. Parked
+    there, the cart slows the robot (v = v_max · 0.31 / d_prox); moving away, it does not: the robot resumes
+    v_max (the collision check, which predicts the cart, finds the way clear)."""
+    from tests.estimation._scans import raycast
+
+    room = np.array([(-3, -4, 6, -4), (6, -4, 6, 4), (6, 4, -3, 4), (-3, 4, -3, -4)], dtype=float)
+    line = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31)]
+
+    def cart(cy: float) -> np.ndarray:
+        x0, x1, y0, y1 = 0.5, 1.5, cy - 0.35, cy + 0.35
+        return np.array([(x0, y0, x1, y0), (x1, y0, x1, y1), (x1, y1, x0, y1), (x0, y1, x0, y0)])
+
+    def speed_with_cart(centres_y: list[float]) -> float:
+        """The controller's speed after one scan (at 10 Hz) per cart position; the robot stands at the origin,
+        heading along its path (+x)."""
+        h = Harness(ControllerService, peer, ("cmd_vel",), pose_source="ground_truth", max_speed_mps=0.5,
+                    proximity_distance_m=0.5, robot_radius_m=0.19)  # fmt: skip
+        h.send("goal_status", _status(0.0, 1, STATUS.STATE_FOLLOWING))
+        h.send("path", ros.path_msg(0.0, "map", line))
+        for k, cy in enumerate(centres_y):
+            t = 0.1 * k
+            angles, ranges = raycast(np.concatenate([room, cart(cy)]), (0.0, 0.0, 0.0), 360, 2 * math.pi, 12.0)
+            h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(0.0, 0.0, 0.0)))
+            h.send("scan", ros.laser_scan(
+                t, "laser", angle_min_rad=float(angles[0]), angle_increment_rad=float(angles[1] - angles[0]),
+                scan_time_s=0.1, range_min_m=0.05, range_max_m=12.0, ranges_m=ranges,
+            ))  # fmt: skip
+            h.step(t, {"cmd_vel": k + 1})
+        return float(h.received["cmd_vel"][-1].linear.x)
+
+    parked = speed_with_cart([-0.42] * 5)
+    crossing = speed_with_cart([1.5 - 0.08 * k for k in range(25)])  # 0.8 m/s southwards, last at y = -0.42
+    assert parked == pytest.approx(0.5 * 0.31 / 0.5, abs=0.01)
+    assert crossing == pytest.approx(0.5)
+
+
 def test_planner_withdraws_the_plan_on_a_stale_costmap_and_resumes_on_a_fresh_one(planner: Harness) -> None:
     planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
     planner.step(0.0, {"goal_status": 3, "plan": 1})
