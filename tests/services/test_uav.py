@@ -14,6 +14,7 @@ import pytest
 
 from mjnav.bus import Bus, BusConfig
 from mjnav.commands.fly import fly_on_bus
+from mjnav.msgs import ros
 from mjnav.runtime.flight import figure8_plan, hover_plan
 from mjnav.sim.uav import UavSimulator
 from tests.conftest import REPO, free_port
@@ -65,17 +66,24 @@ def test_takeoff_hover_land_then_failsafe_landing_when_setpoints_stop() -> None:
         from mjnav.runtime.flight import FlightClient
 
         cfg = json.loads(bus.call("config", service="uav_sim", timeout_s=10.0).data)
-        client = FlightClient(bus, (cfg["origin_lat_deg"], cfg["origin_lon_deg"], cfg["origin_alt_m"]), name="flight")
+        # A participant of its own: the first flight's client ("flight") still takes part in lockstep on this bus, and
+        # a second one under the same name made the sim take either's report for both (a race: 1 suite run in 4
+        # saw the failsafe 0.02 s early against the arming time).
+        client = FlightClient(bus, (cfg["origin_lat_deg"], cfg["origin_lon_deg"], cfg["origin_alt_m"]), name="failsafe")
+        sent: list[float] = []  # sim times the trajectory left the client (its header stamp)
+        bus.subscribe("trajectory", callback=lambda msg: sent.append(ros.seconds(msg.header.stamp)))
         plan = hover_plan(_pad(), 1.0, hover_s=20.0)
         failsafe = client.fly(plan, timeout_s=40.0, wall_timeout_s=300.0, stream_until_s=6.0)
         states = client.states()
         t_armed = _state_times(states, "armed")[-1]
         t_land = _state_times(states, "failsafe_land")
         assert len(t_land) == 1 and "landing" not in [s for t, s in states if t > t_armed]
-        # the client's 6 s is relative to its first step; the last trajectory left at the last 0.2 s resend before 6 s
-        # and the controller saw it one tick later; the state reaches the client one tick after the switch
-        start = t_armed - 0.02  # armed one tick after the client's first step
-        assert 6.0 + 0.5 - 0.2 - 1e-6 <= t_land[0] - start <= 6.0 + 0.5 + 0.1  # 1e-6: stamps are float sums
+        # The stream ran until 6 s after the client's first step, re-sent every 0.2 s (it began once the client saw
+        # the vehicle armed, a few ticks in); the controller saw the last one a tick later and landed 0.5 s after
+        # that (1e-6: stamps are float sums).
+        assert 6.0 - 0.2 - 0.1 - 1e-6 <= sent[-1] - sent[0] < 6.0
+        assert sent[-1] + 0.5 - 1e-6 <= t_land[0] <= sent[-1] + 0.5 + 0.04 + 1e-6
+        start = t_armed - 0.02  # about the client's first step
         assert failsafe.landed and failsafe.final_state == "disarmed"
         times, track = client.truth_track()
         assert track[-1][2] < 0.1  # on the ground again
