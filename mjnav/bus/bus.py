@@ -393,9 +393,10 @@ def _adopt_network_thread() -> None:
     a thread state for a thread that has none and deletes it again when the callback returns. In CPython 3.11 that
     maps and unmaps a 16 KB frame stack and builds the state afresh for every message: an idle planner's two network
     threads made ~1,200 mmap/munmap pairs per second (strace); with the state kept, idle lockstep participants took
-    13-29 % less CPU per sim second (a few runs on a loaded machine). One more ``PyGILState_Ensure``, never released, keeps the count above zero,
-    so every later callback on this thread reuses its state (what a C extension does for a thread it calls Python
-    from). Zenoh's network threads live as long as the process, so the states kept are few (one per thread).
+    13-29 % less CPU per sim second (a few runs on a loaded machine). One more ``PyGILState_Ensure``, never
+    released, keeps the count above zero, so every later callback on this thread reuses its state (what a C
+    extension does for a thread it calls Python from). Zenoh's network threads live as long as the process, so the
+    states kept are few (one per thread).
     """
     _network_thread.adopted = True
     ctypes.pythonapi.PyGILState_Ensure()
