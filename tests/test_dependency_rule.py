@@ -9,7 +9,7 @@ import pytest
 
 from tests.conftest import REPO
 
-PURE = ["geometry", "motion", "mapping", "planning", "smoothing", "control", "estimation", "aerial"]
+PURE = ["geometry", "motion", "mapping", "planning", "smoothing", "control", "estimation", "aerial", "robot"]
 BLOCKED = ["zenoh", "mujoco", "meshcat", "rosbags"] + [
     f"mjnav.{m}" for m in ("msgs", "bus", "runtime", "services", "sim", "viz", "bag", "commands", "cli")
 ]

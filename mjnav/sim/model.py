@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mjnav.geometry import Pose2D, quaternion_to_yaw
+from mjnav.robot import LIDAR_SITE, DescriptionError, RobotDescription, parse_robot_description
 from mjnav.sim.errors import ModelLoadError, RobotNotFoundError
 from mjnav.sim.worlds import GOAL_NUMERIC, WorldInfo, goal_from_numeric, resolve_world
 
@@ -90,11 +91,13 @@ class RobotBinding:
 
 @dataclass(frozen=True, slots=True)
 class LoadedWorld:
-    """A compiled world: the MuJoCo model, what the demo needs to know, and the robot's ids."""
+    """A compiled world: the MuJoCo model, what the demo needs to know, the robot's ids and its description (the
+    MJCF the sim publishes on ``robot_description``, parsed)."""
 
     model: mujoco.MjModel
     info: WorldInfo
     robot: RobotBinding
+    description: RobotDescription
 
 
 def _find_robot_root(spec: mujoco.MjSpec, path: Path) -> mujoco.MjsBody:
@@ -136,7 +139,7 @@ def _sensor(model: mujoco.MjModel, name: str, path: Path) -> tuple[int, float]:
     return int(model.sensor_adr[sid]), float(model.sensor_noise[sid])
 
 
-def _subtree_bodies(model: mujoco.MjModel, root: int) -> list[int]:
+def subtree_bodies(model: mujoco.MjModel, root: int) -> list[int]:
     bodies = []
     for b in range(model.nbody):
         a = b
@@ -159,7 +162,7 @@ def is_static_body(model: mujoco.MjModel, body: int) -> bool:
 def moving_bodies(model: mujoco.MjModel, robot: RobotBinding) -> tuple[int, ...]:
     """Ids of the bodies outside the robot that can move (they or an ancestor have a joint), e.g. the
     warehouse's carts."""
-    robot_bodies = set(_subtree_bodies(model, robot.root_body))
+    robot_bodies = set(subtree_bodies(model, robot.root_body))
     return tuple(b for b in range(1, model.nbody) if b not in robot_bodies and not is_static_body(model, b))
 
 
@@ -188,7 +191,7 @@ def _bind_robot(model: mujoco.MjModel, prefix: str, floors: list[str], path: Pat
     accel_adr, accel_noise = _sensor(model, f"{prefix}imu_accel", path)
     contact_all, _ = _sensor(model, _CONTACT_ALL, path)
     contact_floor = tuple(_sensor(model, f"{_CONTACT_FLOOR}_{i}", path)[0] for i in range(len(floors)))
-    bodies = set(_subtree_bodies(model, root))
+    bodies = set(subtree_bodies(model, root))
     robot_geoms = np.array([g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies], np.int32)
     floor_geoms = np.array([_id(model, obj.mjOBJ_GEOM, n, path) for n in floors], np.int32)
     return RobotBinding(
@@ -208,7 +211,7 @@ def _bind_robot(model: mujoco.MjModel, prefix: str, floors: list[str], path: Pat
         gyro_noise=gyro_noise,
         accel_noise=accel_noise,
         imu_site=_id(model, obj.mjOBJ_SITE, f"{prefix}imu", path),
-        lidar_site=_id(model, obj.mjOBJ_SITE, f"{prefix}lidar", path),
+        lidar_site=_id(model, obj.mjOBJ_SITE, f"{prefix}{LIDAR_SITE}", path),
         contact_all_adr=contact_all,
         contact_floor_adrs=contact_floor,
         robot_geoms=robot_geoms,
@@ -241,35 +244,6 @@ def root_pose(model: mujoco.MjModel, qpos: NDArray[np.float64], robot: RobotBind
     a = robot.root_qpos
     w, x, y, z = (float(v) for v in qpos[a + 3 : a + 7])
     return Pose2D(float(qpos[a]), float(qpos[a + 1]), quaternion_to_yaw(x, y, z, w))
-
-
-def robot_radius(model: mujoco.MjModel, data: mujoco.MjData, robot: RobotBinding) -> float:
-    """Radius (m) of the smallest vertical cylinder about ``base_link`` holding every colliding robot geom.
-
-    Uses the current kinematics in ``data``; spheres and z-axis cylinders are exact, other shapes use their
-    bounding sphere.
-    """
-    base = data.xpos[robot.root_body]
-    base_rot = data.xmat[robot.root_body].reshape(3, 3)
-    radius = 0.0
-    for g in robot.robot_geoms:
-        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
-            continue
-        rel = base_rot.T @ (data.geom_xpos[g] - base)
-        centre = math.hypot(float(rel[0]), float(rel[1]))
-        gtype = model.geom_type[g]
-        if gtype in (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CYLINDER):
-            extent = float(model.geom_size[g, 0])
-        else:
-            extent = float(model.geom_rbound[g])
-        radius = max(radius, centre + extent)
-    return radius
-
-
-def lidar_offset(model: mujoco.MjModel, robot: RobotBinding) -> tuple[float, float, float]:
-    """(x, y, z) of the lidar site in ``base_link``, metres (the site's parent is ``base_link``)."""
-    x, y, z = (float(v) for v in model.site_pos[robot.lidar_site])
-    return x, y, z
 
 
 def load_world(world: str | Path, *, timestep_s: float | None = None) -> LoadedWorld:
@@ -328,13 +302,19 @@ def load_world(world: str | Path, *, timestep_s: float | None = None) -> LoadedW
             goal = goal_from_numeric(model.numeric_data[adr : adr + size].tolist())
         except ValueError as exc:
             raise ModelLoadError(f"{path}: {exc}") from exc
+    from mjnav.sim.description import robot_description
+
+    try:
+        description = parse_robot_description(robot_description(model, robot, prefix.rstrip("/") or spec.modelname))
+    except DescriptionError as exc:
+        raise ModelLoadError(f"{path}: robot description: {exc}") from exc
     info = WorldInfo(
         name=path.stem,
         path=path,
         start=root_pose(model, model.qpos0, robot),
         goal=goal,
         bounds_m=static_bounds(model, data),
-        robot_radius_m=robot_radius(model, data, robot),
-        lidar_offset_m=lidar_offset(model, robot),
+        robot_radius_m=description.radius_m,
+        lidar_offset_m=description.frame(LIDAR_SITE).xyz_m,
     )
-    return LoadedWorld(model=model, info=info, robot=robot)
+    return LoadedWorld(model=model, info=info, robot=robot, description=description)

@@ -30,9 +30,10 @@ from numpy.typing import NDArray
 
 from mjnav.geometry import Pose2D
 from mjnav.motion import DiffDriveKinematics
-from mjnav.sim.errors import InvalidCommandError, ModelLoadError, SimError
-from mjnav.sim.lidar import Lidar, LidarConfig, LidarScan, lidar_config_from_model
-from mjnav.sim.model import RobotBinding, body_name, load_world, moving_bodies, robot_radius, root_pose
+from mjnav.robot import RobotDescription
+from mjnav.sim.errors import InvalidCommandError, SimError
+from mjnav.sim.lidar import Lidar, LidarConfig, LidarScan
+from mjnav.sim.model import RobotBinding, body_name, load_world, moving_bodies, root_pose
 from mjnav.sim.odometry import OdometryConfig, OdometryEstimate, WheelOdometry
 from mjnav.sim.worlds import WorldInfo
 
@@ -122,7 +123,7 @@ class Simulator:
             seed: seed of every noise source; ignored when ``rng`` is given.
             rng: generator to spawn the noise streams from (overrides ``seed``).
             lidar: lidar layout, rate and noise; ``"model"`` (default): the robot model's (its ``lidar_*`` numerics,
-                :func:`mjnav.sim.lidar.lidar_config_from_model`); ``None`` disables the lidar.
+                as its description says: :attr:`description`); ``None`` disables the lidar.
             odometry: wheel-odometry rate and error model.
             watchdog_timeout_s: zero the wheels when the newest command is this old, seconds; ``None``: never.
             start: start pose in the map frame; ``None`` = the world's own start (its ``start`` frame).
@@ -153,11 +154,9 @@ class Simulator:
         if isinstance(lidar, str):
             if lidar != MODEL_LIDAR:
                 raise InvalidCommandError(f"lidar must be a LidarConfig, {MODEL_LIDAR!r} or None, got {lidar!r}")
-            try:
-                lidar = lidar_config_from_model(self._model, self._robot.prefix)
-            except ValueError as exc:
-                raise ModelLoadError(f"{loaded.info.path}: {exc}") from exc
+            lidar = loaded.description.lidar
         self._lidar_config: LidarConfig | None = lidar
+        self._description = loaded.description
         self._odom_config = odometry
         self._watchdog_steps = (
             _NEVER if watchdog_timeout_s is None else max(1, math.ceil(watchdog_timeout_s / self._dt - 1e-9))
@@ -166,7 +165,6 @@ class Simulator:
         self._debounce_steps = round(collision_debounce_s / self._dt)
         self._sensordata = self._data.sensordata
         self._ctrl = self._data.ctrl
-        self._radius = 0.0
         self.reset(start)
 
     # ------------------------------------------------------------------ setup
@@ -191,8 +189,6 @@ class Simulator:
         self._watchdog_tripped = False
         self._collisions = 0
         self._last_contact_k = -_NEVER
-        if self._radius == 0.0:
-            self._radius = robot_radius(m, d, r)
         self._odom = WheelOdometry(r.wheel_diameter_m, r.wheel_separation_m, self._odom_config, self._rng_odom)
         self._odom.reset(0.0, float(d.qpos[r.wheel_qpos[0]]), float(d.qpos[r.wheel_qpos[1]]))
         self._odom_period = _steps(1.0 / self._odom_config.rate_hz, self._dt)
@@ -263,7 +259,13 @@ class Simulator:
     @property
     def robot_radius_m(self) -> float:
         """Radius of the robot's footprint circle about base_link (every colliding geom inside), metres."""
-        return self._radius
+        return self._description.radius_m
+
+    @property
+    def description(self) -> RobotDescription:
+        """The robot's description: what the sim publishes on ``robot_description`` (:attr:`RobotDescription.mjcf`),
+        parsed."""
+        return self._description
 
     @property
     def wheel_diameter_m(self) -> float:
