@@ -4,10 +4,11 @@ With mutual TLS (certificates from ``mjnav certs``) the router knows who is at t
 common name of the client's certificate — a service name, or ``operator`` for a user's tools. The router's
 ``access_control`` section (default deny) then says, per identity:
 
-- everyone may subscribe, watch and query liveliness tokens, read every service's ``config``, and receives
-  whatever the router forwards to it;
+- everyone may subscribe, watch and query liveliness tokens, read every service's ``config``, ask latched topics'
+  publishers for their newest message, and receives whatever the router forwards to it;
 - identity ``X`` may publish the topics :data:`~mjnav.msgs.topics.PUBLISH_RIGHTS` gives ``X`` and its own
-  per-service keys (``<ns>/status/X``, ``<ns>/lockstep/X``), hold its own liveliness tokens
+  per-service keys (``<ns>/status/X``, ``<ns>/lockstep/X``), keep the history of the latched topics it publishes
+  (Zenoh's advanced publisher: a queryable and a token under ``<key>/@adv/``), hold its own liveliness tokens
   (``mjnav/alive/<ns>/X``, ``mjnav/lockstep/<ns>/X``), serve the endpoints
   :data:`~mjnav.msgs.topics.SERVE_RIGHTS` gives it, and call those :data:`~mjnav.msgs.topics.CALL_RIGHTS` gives it;
 - the operator also holds the lockstep slots of the launcher's extra participants (``mjnav demo``'s mission client).
@@ -124,8 +125,17 @@ def grants(namespace: str, services: Sequence[str], extra_participants: Sequence
         serve = [_key(ENDPOINTS[name], namespace, rights, identity) for name, rights in SERVE_RIGHTS.items()]
         query = [_key(ENDPOINTS[name], namespace, rights, identity) for name, rights in CALL_RIGHTS.items()]
         tokens = [alive_key(namespace, identity)] + [lockstep_key(namespace, p) for p in participants]
+        # Latched topics: their publishers answer late joiners from a cache (queryable + token under the key).
+        history = [
+            row.history_key(namespace)
+            for row in TOPICS.values()
+            if row.latched and _key(row, namespace, PUBLISH_RIGHTS[row.name], identity) is not None
+        ]
+        serve += history
+        tokens += history
         if identity == ANYONE:
             put, tokens = [], []
+            query += [row.history_key(namespace) for row in TOPICS.values() if row.latched]
         out[identity] = Grant(identity, _some(put), tuple(tokens), _some(serve), _some(query))
     return out
 

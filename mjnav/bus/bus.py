@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import zenoh
+import zenoh.ext
 
 from mjnav.bus.config import BusConfig
 from mjnav.msgs import codec
@@ -136,14 +137,38 @@ def publisher_qos(row: Topic) -> dict[str, Any]:
     }
 
 
+#: Messages a latched topic's publisher keeps for subscribers that join later (the newest).
+LATCH_DEPTH = 1
+
+
 class Publisher:
-    """Publishes the messages of one topic (reliably: see :func:`publisher_qos`)."""
+    """Publishes the messages of one topic (reliably: see :func:`publisher_qos`).
+
+    A latched topic's publisher is Zenoh's advanced publisher with a cache of :data:`LATCH_DEPTH` (ROS 2's
+    transient-local durability): a subscriber that joins later receives the newest message from it at once. Its
+    samples carry a sequence number (sample-miss detection), which is what the cache needs when the session does
+    not timestamp its samples. Never publish on a latched key from a callback of a subscription to that same key on
+    the same bus: Zenoh delivers the sample to that subscription while its callback holds the subscription's lock,
+    and the put never returns (publish from a step, or from another bus).
+    """
 
     def __init__(self, bus: Bus, row: Topic, key: str) -> None:
         self.topic = row
         self.key = key
         self._bus = bus
-        self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos(row))
+        self._pub: Any
+        if row.latched:
+            self._pub = zenoh.ext.declare_advanced_publisher(
+                bus.session,
+                key,
+                encoding=cdr_encoding(row.msgtype),
+                cache=zenoh.ext.CacheConfig(LATCH_DEPTH),
+                sample_miss_detection=zenoh.ext.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=None),
+                publisher_detection=True,
+                **publisher_qos(row),
+            )
+        else:
+            self._pub = bus.session.declare_publisher(key, encoding=cdr_encoding(row.msgtype), **publisher_qos(row))
         self._encode = codec.encoder(row.msgtype)
 
     def put(self, msg: Any, *, receipt_id: str | None = None) -> None:
@@ -174,13 +199,17 @@ class Publisher:
             if status.matching:
                 matched.set()
 
-        listener = self._pub.declare_matching_listener(on_status)
+        # An advanced (latched) publisher has no matching status of its own: a plain one on the key tells the same.
+        probe: zenoh.Publisher = self._bus.session.declare_publisher(self.key) if self.topic.latched else self._pub
+        listener = probe.declare_matching_listener(on_status)
         try:
-            if self._pub.matching_status.matching:  # type: ignore[attr-defined]
+            if probe.matching_status.matching:  # type: ignore[attr-defined]
                 return True
             return matched.wait(timeout_s)
         finally:
             listener.undeclare()
+            if probe is not self._pub:
+                probe.undeclare()
 
     def close(self) -> None:
         """Undeclare the publisher."""
@@ -237,15 +266,20 @@ class Subscription:
         self._validate = validator(row.msgtype)
         self._lossy = lossy
         self._sub: Any
+        handler: Any
         if lossy:
             newest_only = row.kind is Kind.SNAPSHOT and not self._wildcard
-            capacity = 1 if newest_only else LOSSY_CAPACITY
-            self._sub = bus.session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity))
+            handler = zenoh.handlers.RingChannel(1 if newest_only else LOSSY_CAPACITY)
         else:
             # In Zenoh's network thread (not the default thread per subscriber): samples are then handled in the
             # order they arrived across all subscriptions of the session, which staged delivery relies on.
-            callback = zenoh.handlers.Callback(self._on_network_sample, indirect=False)
-            self._sub = bus.session.declare_subscriber(key, callback)
+            handler = zenoh.handlers.Callback(self._on_network_sample, indirect=False)
+        if row.latched:
+            # The newest message of every publisher that is up now or appears later, then the live ones.
+            history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=LATCH_DEPTH)
+            self._sub = zenoh.ext.declare_advanced_subscriber(bus.session, key, handler, history=history)
+        else:
+            self._sub = bus.session.declare_subscriber(key, handler)
 
     def _on_network_sample(self, sample: zenoh.Sample) -> None:
         """:meth:`_on_sample` as called by Zenoh in its network thread, which first keeps its Python thread state."""
@@ -720,11 +754,54 @@ class Bus:
         payload = codec.encode(request, ep.request_type) if request is not None else b""
         replies = self.session.get(key, payload=payload, encoding=cdr_encoding(ep.request_type), timeout=timeout_s)
         for reply in replies:
-            if reply.ok is not None:
-                return codec.decode(reply.ok.payload.to_bytes(), ep.response_type)
-            err = reply.err
-            raise RemoteError(err.payload.to_string() if err is not None else "error reply without payload")
+            return _reply_value(reply, ep.response_type)
         raise NoReply(f"no reply on {key} within {timeout_s} s")
+
+    def call_async(
+        self,
+        name: str,
+        request: Any,
+        on_reply: Callable[[Any], None],
+        on_error: Callable[[Exception], None],
+        *,
+        timeout_s: float = 5.0,
+        service: str | None = None,
+    ) -> None:
+        """Send a request to endpoint ``name`` and return at once; the first reply goes to ``on_reply`` (decoded)
+        or ``on_error`` (:class:`RemoteError`), no reply within ``timeout_s`` to ``on_error`` (:class:`NoReply`),
+        in Zenoh's thread. For a caller that must not block, e.g. a lockstep client stepping in the clock's
+        callback: the request leaves before anything it publishes afterwards."""
+        ep = endpoint(name)
+        key = ep.key(self.namespace, service)
+        payload = codec.encode(request, ep.request_type) if request is not None else b""
+        answered = threading.Event()
+
+        def on_sample(reply: zenoh.Reply) -> None:
+            if answered.is_set():
+                return
+            answered.set()
+            try:
+                value = _reply_value(reply, ep.response_type)
+            except RemoteError as exc:
+                on_error(exc)
+                return
+            on_reply(value)
+
+        def on_done() -> None:
+            if not answered.is_set():
+                answered.set()
+                on_error(NoReply(f"no reply on {key} within {timeout_s} s"))
+
+        handler = zenoh.handlers.Callback(on_sample, on_done)
+        self.session.get(
+            key,
+            handler,
+            payload=payload,
+            encoding=cdr_encoding(ep.request_type),
+            timeout=timeout_s,
+            priority=zenoh.Priority.DATA,  # the same as every topic: in order with what the caller publishes next
+            congestion_control=zenoh.CongestionControl.BLOCK,
+        )
 
     # ------------------------------------------------------------------------------------------------ liveliness
 
@@ -763,6 +840,14 @@ class Bus:
         sub = self.session.liveliness().declare_subscriber(prefix + "*", on_sample, history=True)
         self._declared.append(sub)
         return sub
+
+
+def _reply_value(reply: zenoh.Reply, response_type: str) -> Any:
+    """The decoded response of a reply, or :class:`RemoteError` for an error reply."""
+    if reply.ok is not None:
+        return codec.decode(reply.ok.payload.to_bytes(), response_type)
+    err = reply.err
+    raise RemoteError(err.payload.to_string() if err is not None else "error reply without payload")
 
 
 def wait_until(predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.01) -> bool:

@@ -7,6 +7,11 @@ Delivery: every message is published reliably and never dropped in transit (a pu
 lockstep runs must see every message); the kinds differ at the subscriber:
 - ``SNAPSHOT``: latest wins; subscribers keep only the newest message (scan, odom, map, cmd_vel …).
 - ``EVENT``: subscribers queue every message until it is handled (goal, cancel …).
+
+*Latched* topics (ROS 2's transient-local durability) also keep their newest message at the publisher, and a
+subscriber that joins later gets it at once (Zenoh's advanced publisher and subscriber with history): the robot
+description, ``tf_static``, the maps, the plan, the path and the goal's status. A late joiner never waits for a
+re-send, and nobody re-sends.
 """
 
 from __future__ import annotations
@@ -45,6 +50,8 @@ class Topic:
             UAV's topics), as the README's table shows it; any namespace works on the wire.
         subscribers: the services that must receive every message of an event topic: a publisher asking for
             delivery receipts (``mjnav pub``, :meth:`mjnav.bus.Bus.put_confirmed`) waits for one from each.
+        latched: each publisher keeps its newest message and a subscriber that joins later receives it (ROS 2's
+            transient-local durability).
     """
 
     name: str
@@ -57,6 +64,7 @@ class Topic:
     express: bool = False
     stack_namespace: str | None = None
     subscribers: tuple[str, ...] = ()
+    latched: bool = False
 
     def key(self, namespace: str = DEFAULT_NAMESPACE, service: str | None = None) -> str:
         """The Zenoh key of this topic in ``namespace``; per-service topics need ``service``
@@ -67,6 +75,17 @@ class Topic:
     def pattern(self) -> str:
         """The key under the namespace as documented, e.g. ``status/<service>``."""
         return f"{self.name}/<service>" if self.per_service else self.name
+
+    def history_key(self, namespace: str = DEFAULT_NAMESPACE) -> str:
+        """Where a latched topic's publishers answer late joiners (Zenoh's advanced publisher declares its cache's
+        queryable and its liveliness token under ``<key>/@adv/``): for access control."""
+        if not self.latched or self.per_service:
+            raise ValueError(f"topic {self.name!r} keeps no history")
+        return f"{self.key(namespace)}/{HISTORY_SUFFIX}"
+
+
+#: Key suffix under which Zenoh's advanced publishers serve their history (see :meth:`Topic.history_key`).
+HISTORY_SUFFIX = "@adv/**"
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,17 +183,29 @@ TOPICS: dict[str, Topic] = {
             "initialpose",
             "geometry_msgs/msg/PoseWithCovarianceStamped",
             _E,
-            "user",
-            "on request",
-            "Initial pose in `map`, as RViz's 2D Pose Estimate sends it (SLAM starts or relocalises there)",
+            "sim, user",
+            "once at t = 0, on request",
+            "Initial pose in `map`, as RViz's 2D Pose Estimate sends it (SLAM starts or relocalises there); the sim "
+            "announces the spawn pose when sim time starts",
+        ),
+        Topic(
+            "robot_description",
+            "std_msgs/msg/String",
+            _S,
+            "sim",
+            "once",
+            "The robot's MJCF, flattened (as ROS's `robot_description`): footprint, sensor frames and lidar for "
+            "every service",
+            latched=True,
         ),
         Topic(
             "tf_static",
             "tf2_msgs/msg/TFMessage",
             _S,
-            "slam",
-            "1 Hz",
-            "Fixed transforms `base_link` → `laser`, `base_link` → `imu` (re-sent for late joiners)",
+            "sim",
+            "once",
+            "Fixed transforms `base_link` → each sensor frame of the robot model (`laser`, `imu`)",
+            latched=True,
         ),
         Topic(
             "obstacles",
@@ -208,8 +239,17 @@ TOPICS: dict[str, Topic] = {
             "1 Hz",
             "Occupancy map in `map` (SLAM's, re-rendered from optimised poses; the mapper's with mapper.map_source = "
             "scan)",
+            latched=True,
         ),
-        Topic("costmap", "nav_msgs/msg/OccupancyGrid", _S, "mapper", "2 Hz", "Inflated costmap, 0–100"),
+        Topic(
+            "costmap",
+            "nav_msgs/msg/OccupancyGrid",
+            _S,
+            "mapper",
+            "2 Hz",
+            "Inflated costmap, 0–100; grows with the area the lidar has reached",
+            latched=True,
+        ),
         Topic(
             "cmd_vel_teleop",
             "geometry_msgs/msg/Twist",
@@ -236,15 +276,33 @@ TOPICS: dict[str, Topic] = {
             "Cancel the current goal",
             subscribers=("planner",),
         ),
-        Topic("plan", "nav_msgs/msg/Path", _S, "planner", "on change", "Raw grid plan in `map`"),
-        Topic("path", "nav_msgs/msg/Path", _S, "smoother", "on change", "Smoothed path the controller follows"),
+        Topic("plan", "nav_msgs/msg/Path", _S, "planner", "on change", "Raw grid plan in `map`", latched=True),
+        Topic(
+            "path",
+            "nav_msgs/msg/Path",
+            _S,
+            "smoother",
+            "on change",
+            "Smoothed path the controller follows",
+            latched=True,
+        ),
         Topic(
             "goal_status",
             "mjnav_msgs/msg/GoalStatus",
             _E,
-            "planner, controller",
+            "planner",
             "on change",
-            "Goal lifecycle with a typed failure reason",
+            "Goal lifecycle with a typed failure reason; the planner owns every goal",
+            latched=True,
+        ),
+        Topic(
+            "controller_feedback",
+            "mjnav_msgs/msg/ControllerFeedback",
+            _E,
+            "controller",
+            "on change",
+            "The controller's report to the planner on the active goal: following, arrived, no progress, halted",
+            latched=True,
         ),
         Topic(
             "receipt",
@@ -285,6 +343,16 @@ TOPICS: dict[str, Topic] = {
             "10 Hz",
             "GPS fix (WGS84), stamped when taken",
             stack_namespace="uav0",
+        ),
+        Topic(
+            "datum",
+            "sensor_msgs/msg/NavSatFix",
+            _S,
+            "uav_sim",
+            "once",
+            "WGS84 position of the `map` frame's origin (ENU), which the GPS fixes are referred to",
+            stack_namespace="uav0",
+            latched=True,
         ),
         Topic(
             "baro",
@@ -428,8 +496,9 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "ground_truth": ("sim", "uav_sim"),
     "truth": ("sim",),
     "pose": ("slam",),
-    "initialpose": (OPERATOR,),
-    "tf_static": ("slam",),
+    "initialpose": ("sim", OPERATOR),
+    "robot_description": ("sim",),
+    "tf_static": ("sim",),
     "obstacles": ("sim",),
     "sim_status": ("sim", "uav_sim"),
     "cmd_vel": ("controller", OPERATOR),
@@ -441,10 +510,12 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "cancel": (OPERATOR,),
     "plan": ("planner",),
     "path": ("smoother",),
-    "goal_status": ("planner", "controller"),
+    "goal_status": ("planner",),
+    "controller_feedback": ("controller",),
     "status": (OWN,),
     "lockstep": (OWN,),
     "gps": ("uav_sim",),
+    "datum": ("uav_sim",),
     "baro": ("uav_sim",),
     "mocap": ("uav_sim",),
     "ins_odom": ("ins",),
@@ -535,9 +606,8 @@ def markdown_table(namespace: str = DEFAULT_NAMESPACE) -> str:
     ]
     for row in TOPICS.values():
         key = f"{row.stack_namespace or namespace}/{row.pattern}"
-        lines.append(
-            f"| `{key}` | `{row.msgtype}` | {row.kind.value} | {row.publisher} | {row.rate} | {row.description} |"
-        )
+        delivery = row.kind.value + (", latched" if row.latched else "")
+        lines.append(f"| `{key}` | `{row.msgtype}` | {delivery} | {row.publisher} | {row.rate} | {row.description} |")
     lines.append("")
     lines.append("| endpoint (queryable) | request | reply | server | description |")
     lines.append("|---|---|---|---|---|")

@@ -154,12 +154,13 @@ def test_rules_cover_every_topic_and_endpoint_and_name_real_identities() -> None
     # What the issue names: only the sim drives time, only the controller and the operator move the robot, …
     who_may = {
         n: {i for i in table if allowed(table, i, "put", TOPICS[n].key("robot0"))}
-        for n in ("clock", "cmd_vel", "goal_status", "costmap", "map", "goal", "cancel")
+        for n in ("clock", "cmd_vel", "goal_status", "controller_feedback", "costmap", "map", "goal", "cancel")
     }
     assert who_may == {
         "clock": {"sim"},
         "cmd_vel": {"controller", OPERATOR},
-        "goal_status": {"planner", "controller"},
+        "goal_status": {"planner"},  # the planner owns every goal
+        "controller_feedback": {"controller"},
         "costmap": {"mapper"},
         "map": {"slam", "mapper"},  # SLAM's map; the mapper's own with map_source = scan
         "goal": {OPERATOR},
