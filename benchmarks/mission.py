@@ -90,7 +90,7 @@ def run_once(
     try:
         with Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus:
             footprint = FootprintClearance(info.path)  # scoring: the robot's disc against the true static map
-            client = MissionClient(bus, name="mission", initial_pose=info.start, clearance=footprint.clearance_m)
+            client = MissionClient(bus, name="mission", clearance=footprint.clearance_m)
             status = bus.subscribe("status", service="*", immediate=True)  # wall-time reports, not staged
             if not wait_until(lambda: set(SERVICES) <= set(bus.alive_services(0.5)), 180.0):
                 raise RuntimeError("the stack did not come up")

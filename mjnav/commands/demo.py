@@ -310,7 +310,7 @@ def _mission(
     from mjnav.sim.truth import FootprintClearance
 
     footprint = FootprintClearance(info.path)  # scoring only: the true static map
-    client = MissionClient(bus, name=MISSION, initial_pose=info.start, clearance=footprint.clearance_m)
+    client = MissionClient(bus, name=MISSION, clearance=footprint.clearance_m)
     if not wait_until(lambda: set(services) <= set(bus.alive_services(0.5)), 180.0):
         raise RuntimeError(f"services did not come up within 180 s (alive: {bus.alive_services(0.5)})")
     v_max = math.nan

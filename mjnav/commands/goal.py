@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import queue
 import sys
 import time
@@ -90,6 +91,13 @@ def register(sub: Any) -> None:
     p.add_argument("--waypoints", type=Path, metavar="FILE", help="follow the waypoints of FILE in order (waits)")
     p.add_argument("--wait", action="store_true", help="follow the goal until it ends; exit 0 only when reached")
     p.add_argument("--timeout", type=float, metavar="S", help="with --wait: give up (and cancel) after S wall seconds")
+    p.add_argument(
+        "--at",
+        type=float,
+        metavar="T",
+        help="send the goal at sim time T (s): mjnav goal takes part in lockstep until then, so the goal leaves at "
+        "exactly T whatever the machine's load and the run repeats to the bit (fails when sim time is past T)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object per line instead of text")
     p.add_argument("--ns", default="robot0", help="robot namespace (default robot0)")
     add_bus_arguments(p)
@@ -164,6 +172,10 @@ def run_goal(args: argparse.Namespace) -> int:
             raise ValueError("coordinates and --yaw must be finite")
         if args.timeout is not None and not args.timeout > 0:
             raise ValueError("--timeout must be > 0")
+        if args.at is not None and not (math.isfinite(args.at) and args.at >= 0):
+            raise ValueError("--at must be a sim time >= 0 (seconds)")
+        if args.at is not None and args.waypoints is not None:
+            raise ValueError("--at sends one goal: give X Y, not --waypoints")
     except ValueError as exc:
         print(f"mjnav goal: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -181,7 +193,7 @@ def run_goal(args: argparse.Namespace) -> int:
         deadline = None if args.timeout is None else time.monotonic() + args.timeout
         for index, waypoint in enumerate(waypoints):
             label = f"waypoint {index + 1}/{len(waypoints)}: " if len(waypoints) > 1 else ""
-            code = _drive(bus, args.frame, waypoint, statuses, wait, deadline, report, label)
+            code = _drive(bus, args.frame, waypoint, statuses, wait, deadline, report, label, args.at)
             if code != EXIT_REACHED:
                 return code
         if len(waypoints) > 1:
@@ -198,8 +210,10 @@ def _drive(
     deadline: float | None,
     report: _Reporter,
     label: str,
+    at_s: float | None = None,
 ) -> int:
-    """Send one goal through ``navigate`` and, with ``wait``, follow it to its end; returns the exit code."""
+    """Send one goal through ``navigate`` (at sim time ``at_s``, when given) and, with ``wait``, follow it to its
+    end; returns the exit code."""
     from mjnav.bus import NoReply, RemoteError
     from mjnav.geometry import yaw_to_quaternion
     from mjnav.msgs import from_dict
@@ -211,7 +225,10 @@ def _drive(
     if waypoint.yaw_deg is not None:
         where += f" yaw {waypoint.yaw_deg:g}°"
     try:
-        reply = bus.call("navigate", request, timeout_s=5.0)
+        reply = bus.call("navigate", request, timeout_s=5.0) if at_s is None else _navigate_at(bus, request, at_s)
+    except _TooLate as exc:
+        print(f"mjnav goal: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except NoReply:
         print(
             f"mjnav goal: no planner answered on {bus.namespace}/navigate (is it running? `mjnav health planner`)",
@@ -240,6 +257,7 @@ def _drive(
     if not wait:
         return EXIT_REACHED
     last = "ACCEPTED"
+    accepted_t: float | None = None  # sim time of the goal's first status (the planner took it)
     try:
         while True:
             remaining = None if deadline is None else deadline - time.monotonic()
@@ -255,6 +273,7 @@ def _drive(
                 continue
             name = state_name(status.state)
             t = status.header.stamp.sec + status.header.stamp.nanosec * 1e-9
+            accepted_t = t if accepted_t is None else accepted_t
             if name != last:
                 last = name
                 error = error_name(status.error_code)
@@ -263,7 +282,11 @@ def _drive(
                     text += f": {error}: {status.error_text}"
                 elif status.error_text:
                     text += f" ({status.error_text})"
-                report({"goal_id": goal_id, "state": name, "error": error, "text": status.error_text, "t": t}, text)
+                event = {"goal_id": goal_id, "state": name, "error": error, "text": status.error_text, "t": t}
+                if name in ("REACHED", "FAILED", "CANCELED"):
+                    event["time_s"] = round(t - accepted_t, 9)  # from the planner taking the goal to its end
+                    text += f" ({event['time_s']:.2f} s)"
+                report(event, text)
             if name == "REACHED":
                 return EXIT_REACHED
             if name in ("FAILED", "CANCELED"):
@@ -272,6 +295,58 @@ def _drive(
         _cancel_quietly(bus)
         print(f"mjnav goal: interrupted: goal {goal_id} canceled", file=sys.stderr)
         return 130
+
+
+class _TooLate(ValueError):
+    """``--at`` names a sim time that has passed."""
+
+
+def _navigate_at(bus: Any, request: Any, at_s: float) -> Any:
+    """The ``navigate`` reply to ``request`` sent at sim time ``at_s`` from a lockstep step (see ``--at``).
+
+    Raises:
+        _TooLate: sim time is already past ``at_s``.
+        NoReply, RemoteError: as :meth:`mjnav.bus.Bus.call`.
+    """
+    import threading
+
+    from mjnav.runtime.participant import LockstepParticipant
+
+    done = threading.Event()
+    outcome: list[Any] = []
+
+    def finish(value: Any) -> None:
+        outcome.append(value)
+        done.set()
+
+    class TimedGoal(LockstepParticipant):
+        """Steps when it joins, its next step at ``at_s``, where it sends the request; then every sim second
+        (a participant until the command ends, as cheap as reporting)."""
+
+        def __init__(self) -> None:
+            self._init_participant(bus, f"goal{os.getpid()}", period_s=1.0)
+            self._sent = False
+            self._subscribe_clock()
+
+        def _step(self, t: float) -> None:
+            if self._sent:
+                return
+            if t > at_s + 1e-9:
+                self._sent = True
+                finish(_TooLate(f"sim time is {t:.2f} s, past --at {at_s:g} s"))
+            elif t >= at_s - 1e-9:
+                self._sent = True
+                bus.call_async("navigate", request, finish, finish, timeout_s=5.0)  # leaves before the report
+            else:
+                self._next_tick = at_s  # report the next step at at_s: sim time waits there for the request
+
+    client = TimedGoal()
+    client._participate()
+    done.wait()
+    value = outcome[0]
+    if isinstance(value, Exception):
+        raise value
+    return value
 
 
 def _cancel_quietly(bus: Any) -> None:

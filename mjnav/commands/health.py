@@ -20,10 +20,11 @@ def register(sub: Any) -> None:
         help="check that the router answers and services are alive",
         description=(
             "Exit 0 when the Zenoh router (or a peer) is reachable and every named service holds its liveliness "
-            "token mjnav/alive/<ns>/<service> (with --status: also reports itself active on <ns>/status/<service> "
-            "and its loop is moving: its step count grows between two status messages); exit 1 otherwise, naming "
-            "what is missing, stalled or unreachable (never waits longer than --timeout). With no service named, "
-            "only the connection is checked."
+            "token mjnav/alive/<ns>/<service> (with --status: also reports itself active on <ns>/status/<service>, "
+            "its loop is moving — its step count grows between two status messages — and it lacks no input: a "
+            "service starved of one, such as slam without an initialpose or the mapper without a pose, names it in "
+            "its status); exit 1 otherwise, naming what is missing, stalled, starved or unreachable (never waits "
+            "longer than --timeout). With no service named, only the connection is checked."
         ),
         epilog="Examples: mjnav health --connect tcp/127.0.0.1:7447   mjnav health sim mapper --timeout 5",
     )
@@ -33,7 +34,8 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--status",
         action="store_true",
-        help="also require an 'active' status from each, with a step count that moves (statuses come every second)",
+        help="also require an 'active' status from each, with a step count that moves and no input missing "
+        "(statuses come every second)",
     )
     add_bus_arguments(p)
     p.set_defaults(func=run)
@@ -77,19 +79,22 @@ def run(args: argparse.Namespace) -> int:
 
             first_steps: dict[str, int] = {}
 
-            def states() -> dict[str, tuple[int, int] | None]:
+            def states() -> dict[str, tuple[int, int, str] | None]:
                 latest = status_sub.latest_by_key()
-                out: dict[str, tuple[int, int] | None] = {}
+                out: dict[str, tuple[int, int, str] | None] = {}
                 for s, k in keys.items():
                     if k in latest:
                         first_steps.setdefault(s, int(latest[k].steps))
-                        out[s] = (int(latest[k].state), int(latest[k].steps))
+                        out[s] = (int(latest[k].state), int(latest[k].steps), str(latest[k].waiting_for))
                     else:
                         out[s] = None
                 return out
 
             def good() -> bool:
-                return all(v is not None and v[0] == _ACTIVE and v[1] > first_steps[s] for s, v in states().items())
+                return all(
+                    v is not None and v[0] == _ACTIVE and v[1] > first_steps[s] and not v[2]
+                    for s, v in states().items()
+                )
 
             wait_until(good, max(0.0, deadline - time.monotonic()), 0.05)
             for s, latest in states().items():
@@ -97,6 +102,8 @@ def run(args: argparse.Namespace) -> int:
                     problems.append(f"{s}: no status on {keys[s]}")
                 elif latest[0] != _ACTIVE:
                     problems.append(f"{s}: status state {latest[0]}, not active")
+                elif latest[2]:
+                    problems.append(f"{s}: waiting for {latest[2]}")
                 elif latest[1] <= first_steps[s]:
                     problems.append(f"{s}: loop stalled (step count stuck at {latest[1]})")
     if problems:

@@ -43,7 +43,8 @@ class CollisionCheckParams:
     """Settings of the collision check.
 
     Attributes:
-        robot_radius_m: radius of the robot's footprint disc, metres, > 0.
+        robot_radius_m: radius of the robot's footprint disc, metres, > 0 (the robot's own: from its description,
+            :attr:`mjnav.robot.RobotDescription.radius_m`; no default).
         margin_m: extra clearance the check keeps, metres, >= 0.
         static_horizon_s: how far ahead static points are checked, seconds, > 0.
         moving_horizon_s: how far ahead moving points are checked, seconds, >= static_horizon_s.
@@ -55,7 +56,7 @@ class CollisionCheckParams:
         range_m: points further than this from the robot are ignored, metres, > 0.
     """
 
-    robot_radius_m: float = 0.18
+    robot_radius_m: float
     margin_m: float = 0.03
     static_horizon_s: float = 0.6
     moving_horizon_s: float = 4.0

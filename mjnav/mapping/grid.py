@@ -559,6 +559,33 @@ class OccupancyGrid:
         new._log_odds[...] = self._log_odds
         return new
 
+    def grown_to(self, x_min: float, y_min: float, x_max: float, y_max: float) -> OccupancyGrid:
+        """This grid extended to cover the rectangle [x_min, x_max] × [y_min, y_max] (metres, map frame) as well.
+
+        The new grid lies on the same cells (its origin moves by whole cells), keeps every log-odds value, and
+        starts the added cells at the prior; with nothing to add it is this grid itself. A map that grows with
+        what is seen (Nav2's static layer resizing to the map it receives) costs memory in proportion to the area
+        covered.
+
+        Raises:
+            InvalidParameterError: a bound is not finite, or x_max < x_min or y_max < y_min.
+        """
+        bounds = [
+            _finite(v, name) for v, name in ((x_min, "x_min"), (y_min, "y_min"), (x_max, "x_max"), (y_max, "y_max"))
+        ]
+        if bounds[2] < bounds[0] or bounds[3] < bounds[1]:
+            raise InvalidParameterError(f"empty rectangle x {x_min}..{x_max}, y {y_min}..{y_max}")
+        res, (ox, oy) = self._resolution, self._origin
+        c0 = min(0, math.floor((bounds[0] - ox) / res))
+        r0 = min(0, math.floor((bounds[1] - oy) / res))
+        c1 = max(self._width, math.ceil((bounds[2] - ox) / res))
+        r1 = max(self._height, math.ceil((bounds[3] - oy) / res))
+        if (c0, r0, c1, r1) == (0, 0, self._width, self._height):
+            return self
+        new = OccupancyGrid(c1 - c0, r1 - r0, res, (ox + c0 * res, oy + r0 * res), **_model_kwargs(self.model))
+        new._log_odds[-r0 : -r0 + self._height, -c0 : -c0 + self._width] = self._log_odds
+        return new
+
     # -- geometry --------------------------------------------------------------------------------------------
 
     @property

@@ -23,7 +23,6 @@ import ctypes
 import importlib
 import json
 import logging
-import math
 import os
 import select
 import shutil
@@ -58,8 +57,6 @@ HUNG_TIMEOUT_S = 5.0
 #: Wall seconds a service may stay silent before it reported its first step: the first calls of numba kernels compile
 #: them (tens of seconds for SLAM on a fresh checkout, whose caches are cold), which is starting, not hanging.
 FIRST_STEP_TIMEOUT_S = 120.0
-#: Free margin (m) the mapper's grid keeps around the world's static geoms.
-WORLD_MARGIN_M = 1.0
 
 
 #: Modules every forked service needs besides its own class (imported once by the launcher, see ``fork_services``):
@@ -271,10 +268,10 @@ class Launcher:
         )
 
     def _add_run_settings(self, lockstep: bool, extra_participants: Sequence[str], seed: int | None) -> None:
-        """Lockstep, seed and world settings, put before the caller's overrides so that an explicit ``--set``
-        wins."""
+        """The run's lockstep and seed settings, put before the caller's overrides so that an explicit ``--set``
+        wins. Nothing about the robot or the world: the services learn those from the sim over the bus, as they
+        do when they run alone (``mjnav run``, a container)."""
         classes = {spec.name: spec.load_class() for spec in self.specs}
-        from_world = self._settings_from_world() if "sim" in classes else {}
         for name, cls in classes.items():
             settings = []
             declared = {f.name for f in fields(cls.config_class)}
@@ -283,52 +280,7 @@ class Launcher:
             if "lockstep_participants" in declared:  # the stack's sim
                 participants = [n for n, c in classes.items() if c.uses_sim_time] + list(extra_participants)
                 settings += [f"lockstep={json.dumps(lockstep)}", f"lockstep_participants={json.dumps(participants)}"]
-            world = from_world.get(name, {})
-            settings += [f"{key}={json.dumps(value)}" for key, value in world.items() if key in declared]
             self.overrides[name] = settings + self.overrides.get(name, [])
-
-    def _settings_from_world(self) -> dict[str, dict[str, Any]]:
-        """Settings that follow from the sim's world, per service (the MJCF is their one source):
-
-        * ``slam``: ``initial_pose`` = the world's start, as an operator who placed the robot there would give it
-          (an ``initialpose`` message or an explicit ``--set slam.initial_pose`` wins), ``laser_offset_m`` = the
-          lidar site in ``base_link``;
-        * ``mapper``: ``robot_radius_m`` (the robot's footprint radius), ``laser_offset_m`` (x, y), and its grid
-          (``width_m``, ``height_m``, ``origin_m``) sized to the world's static geoms and start with
-          :data:`WORLD_MARGIN_M` around them (a world without static geoms keeps the configured grid);
-        * ``controller``: ``robot_radius_m``.
-        """
-        from mjnav.sim.worlds import world_info
-
-        sim = next(spec for spec in self.specs if spec.name == "sim")
-        try:
-            config = sim.load_config(dict(parse_override(item) for item in self.overrides.get("sim", [])))
-            info = world_info(config.world)
-        except (ConfigError, ValueError, LookupError, RuntimeError):  # SimError; check() names the problem
-            return {}
-        start, offset, radius = info.start, [round(v, 9) for v in info.lidar_offset_m], round(info.robot_radius_m, 9)
-        out: dict[str, dict[str, Any]] = {
-            "slam": {"initial_pose": [start.x, start.y, start.theta], "laser_offset_m": offset},
-            "mapper": {"robot_radius_m": radius, "laser_offset_m": offset[:2]},
-            "controller": {"robot_radius_m": radius},
-        }
-        mapper = next((spec for spec in self.specs if spec.name == "mapper"), None)
-        if info.bounds_m is not None and mapper is not None:
-            user = dict(parse_override(item) for item in self.overrides.get("mapper", []))
-            try:
-                res = float(mapper.load_config(user).resolution_m)
-            except (ConfigError, ValueError, AttributeError):
-                return out
-            x0 = math.floor((min(info.bounds_m[0], start.x) - WORLD_MARGIN_M) / res) * res
-            y0 = math.floor((min(info.bounds_m[1], start.y) - WORLD_MARGIN_M) / res) * res
-            x1 = max(info.bounds_m[2], start.x) + WORLD_MARGIN_M
-            y1 = max(info.bounds_m[3], start.y) + WORLD_MARGIN_M
-            out["mapper"] |= {
-                "origin_m": [round(x0, 9), round(y0, 9)],
-                "width_m": round(math.ceil((x1 - x0) / res) * res, 9),
-                "height_m": round(math.ceil((y1 - y0) / res) * res, 9),
-            }
-        return out
 
     def check(self) -> None:
         """Validate everything before anything starts: every service's config file with its overrides (unknown

@@ -35,7 +35,8 @@ class GoalOutcome:
         result: ``reached``, ``failed``, ``canceled`` or ``timeout``.
         error_code: GoalStatus error code (0 = none).
         error_text: the planner's reason.
-        time_s: sim seconds from sending the goal to its end.
+        time_s: sim seconds from sending the goal to its end (the stamp of its final status: for a goal reached,
+            when the robot arrived).
         path_length_m: distance driven meanwhile (ground truth).
         start: robot position (x, y) when the goal was sent.
     """
@@ -242,6 +243,7 @@ class MissionClient(LockstepParticipant):
         track = self._track
         current = job.current
         if current is not None:
+            ended = t
             for msg in track.statuses[job.seen :]:
                 if current.goal_id == 0 and msg.state == _STATUS.STATE_ACCEPTED:
                     current.goal_id = int(msg.goal_id)
@@ -249,13 +251,14 @@ class MissionClient(LockstepParticipant):
                     current.result = _FINAL[msg.state]
                     current.error_code = int(msg.error_code)
                     current.error_text = msg.error_text
+                    ended = ros.seconds(msg.header.stamp)  # when it ended (the robot arrived), not when heard
                     break
             job.seen = len(track.statuses)
             if current.result == "timeout" and t - job.t0 >= job.timeout_s:
                 self.cancel_pub.put(msg_class("std_msgs/msg/Empty")())
             elif current.result == "timeout":
                 return
-            current.time_s = t - job.t0
+            current.time_s = ended - job.t0
             current.path_length_m = track.length_m - job.length0
             job.outcomes.append(current)
             job.current = None

@@ -37,6 +37,11 @@ class PoseInput:
         if source not in POSE_SOURCES:
             raise ValueError(f"pose source must be one of {list(POSE_SOURCES)}, got {source!r}")
         self.source = source
+        self._where = (
+            f"map -> odom from slam and odom -> base_link on {bus.key('tf')}"
+            if source == "slam"
+            else f"{ros.POSE_TOPICS[source]} on {bus.key(ros.POSE_TOPICS[source])}"
+        )
         self._pending: deque[tuple[float, Pose2D]] = deque(maxlen=1000)
         self._pending_tf: deque[tuple[float, Pose2D]] = deque(maxlen=100)
         self._horizon_s = horizon_s
@@ -45,6 +50,10 @@ class PoseInput:
             bus.subscribe("tf", callback=self._on_tf)
         else:
             bus.subscribe(ros.POSE_TOPICS[source], callback=self._on_pose)
+
+    def describe(self) -> str:
+        """Where the pose comes from, for a status that says it is missing."""
+        return self._where
 
     def reset(self) -> None:
         """Forget every pose (the sim clock restarted)."""

@@ -37,6 +37,11 @@ log = logging.getLogger("mjnav.runtime")
 _POLL_S = 0.1
 #: Tolerance on tick times, so that accumulated float error never defers a step to the next clock message.
 _TICK_EPS_S = 1e-9
+#: Wall seconds between two looks at what a starting service still waits for (:meth:`Service.starting`).
+_STARTING_POLL_S = 0.02
+#: Seconds (of the loop's clock) a service must have lacked an input before its status says so: the inputs of a
+#: stack that is starting arrive within a step or two of each other, and that is not starving.
+STARVED_GRACE_S = 1.0
 
 _STATE = {"unconfigured": 0, "inactive": 1, "active": 2, "finalized": 3}
 
@@ -190,6 +195,8 @@ class ServiceRunner:
         self._config_lock = threading.Lock()
         self._next_config: Any = None  # a config set through set_param, swapped in before the next step
         self._step_started: float | None = None  # time.monotonic() when the running step began (None: between steps)
+        self.waiting_for = ""  # what the service lacks (Service.starting, then Service.starved), for the status
+        self._lacking_since = math.nan  # loop time since which Service.starved has said something
 
     # ---------------------------------------------------------------------------------------------- signals
 
@@ -230,6 +237,7 @@ class ServiceRunner:
             messages_rejected=bus.stats.rejected,
             messages_published=bus.stats.published,
             last_error=s.last_error or bus.stats.last_rejection,
+            waiting_for=self.waiting_for,
         )
 
     # ---------------------------------------------------------------------------------------------- main
@@ -254,8 +262,14 @@ class ServiceRunner:
         self._state = "inactive"
         service.activate()
         self._state = "active"
-        lockstep = _LockstepReport(bus, self.name) if self.use_sim_time else None
         bus.declare_alive(self.name)
+        try:
+            self._wait_until_started(service, lambda: status_pub.put(self._status_msg(bus, clock.now())))
+        except StopRequested:
+            service.deactivate()
+            status_pub.put(self._status_msg(bus, clock.now()))
+            return 0
+        lockstep = _LockstepReport(bus, self.name) if self.use_sim_time else None
         self.log.info(
             "active: %.1f Hz on %s time, namespace %s",
             self.config.rate_hz,
@@ -282,6 +296,7 @@ class ServiceRunner:
                     if math.isnan(clock.now()):
                         if not waited_for_clock:
                             self.log.info("waiting for the clock on %s", bus.key("clock"))
+                            self.waiting_for = f"the clock on {bus.key('clock')} (sim time has not started)"
                             waited_for_clock = True
                         try:
                             clock.wait_until(-math.inf, _StopAfter(self.stop_event, STATUS_PERIOD_S))
@@ -309,6 +324,7 @@ class ServiceRunner:
                     next_tick = now
                 self._apply_config(service)
                 self._step(service, now)
+                self._note_starved(service.starved(), now)
                 next_tick += period
                 if lockstep is not None:
                     lockstep.ready(now, next_tick)
@@ -322,6 +338,42 @@ class ServiceRunner:
                 status_pub.put(self._status_msg(bus, clock.now()))
         self.log.info("stopped after %d steps", self.stats.steps)
         return 0
+
+    def _wait_until_started(self, service: Service[Any], send_status: Callable[[], None]) -> None:
+        """Hold the service back, its status going out every second, until it has what it needs to step
+        (:meth:`Service.starting`); says once what it waits for.
+
+        Raises:
+            StopRequested: the runner was stopped meanwhile.
+        """
+        next_status = time.monotonic()
+        while waiting := service.starting():
+            if waiting != self.waiting_for:
+                self.log.info("waiting for %s", waiting)
+                self.waiting_for = waiting
+            if time.monotonic() >= next_status:
+                send_status()
+                next_status += STATUS_PERIOD_S
+            if self.stop_event.wait(_STARTING_POLL_S):
+                raise StopRequested
+        self.waiting_for = ""
+
+    def _note_starved(self, waiting: str, now: float) -> None:
+        """Keep what the service lacks for the status, once it has lacked something for :data:`STARVED_GRACE_S`;
+        log when that starts, changes and ends."""
+        if not waiting:
+            self._lacking_since = math.nan
+        elif math.isnan(self._lacking_since):
+            self._lacking_since = now
+        if waiting and now - self._lacking_since < STARVED_GRACE_S:
+            return
+        if waiting == self.waiting_for:
+            return
+        if waiting:
+            self.log.info("waiting for %s", waiting)
+        else:
+            self.log.info("no longer waiting for %s", self.waiting_for)
+        self.waiting_for = waiting
 
     def _set_param(self, request: str) -> dict[str, Any]:
         """``set_param``: request JSON ``{"key": K, "value": V}``; validates V like the TOML file (type, range) for a

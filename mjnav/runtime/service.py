@@ -63,5 +63,18 @@ class Service(Generic[ConfigT]):
         """One loop iteration at time ``now`` (seconds of sim time, or wall time since start)."""
         raise NotImplementedError
 
+    def starting(self) -> str:
+        """Before the first step: what the service still waits for, by name and key ("" = ready), e.g. the robot
+        description the sim latches. The runner steps the service (and, on sim time, joins lockstep) only once this
+        is empty, so every step of every run sees the same facts; meanwhile it says what is missing in the status
+        and the log."""
+        return ""
+
+    def starved(self) -> str:
+        """After each step: the input the service lacks to do its work, by name and key ("" = none), e.g.
+        ``"initialpose on robot0/initialpose"``. The runner reports it in the status (``mjnav health --status``
+        fails on it) and logs when it starts and when it ends. Keep it cheap: it is asked after every step."""
+        return ""
+
     def deactivate(self) -> None:
         """Stop acting and release what ``activate``/``configure`` took (save files, stop actuators)."""

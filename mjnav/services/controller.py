@@ -3,9 +3,9 @@
 Speed is regulated by curvature and by the nearest obstacle the lidar sees in front (``scan``; returns of an obstacle
 moving away from the robot do not count: the collision check below predicts them); the robot slows on
 approach and stops within ``goal_tolerance_m`` of the goal; when the goal has an orientation it then turns in place
-to the goal's yaw (within ``yaw_goal_tolerance_rad``; an all-zero quaternion means any heading) and reports
-``reached`` on ``goal_status``. Once within the xy tolerance the goal stays latched there (Nav2's stateful goal
-checker): the turn does not restart the approach. Every command then passes a last-line
+to the goal's yaw (within ``yaw_goal_tolerance_rad``; an all-zero quaternion means any heading) and reports its
+arrival to the planner on ``controller_feedback``. Once within the xy tolerance the goal stays latched there (Nav2's
+stateful goal checker): the turn does not restart the approach. Every command then passes a last-line
 collision check against the robot's own scan (:func:`mjnav.control.collision.safe_command`): the commanded arc is
 rolled forward against the scan's points — moving ones at the velocities two consecutive scans give — and a command
 that would collide is replaced by a slower, stopped or (to clear a crossing obstacle) faster one on the same
@@ -13,9 +13,12 @@ curvature. It stops (and keeps publishing zero) when there is no path, the goal 
 the scan is stale, or the robot is further than ``lost_distance_m`` from the path (the planner's next replan gives a
 new one).
 
-Every goal ends: besides ``reached``, the controller fails the active goal with ``ERROR_TIMEOUT`` when the robot has
-not moved ``progress_radius_m`` in ``progress_timeout_s`` (Nav2's progress checker), or when the planner's
-``following`` heartbeat has been silent for ``planner_timeout_s`` (the planner died for good).
+The planner owns every goal (its ``goal_status``); the controller follows the goal the planner's newest
+``following`` names and reports to it on ``controller_feedback``: following, halted (and why), arrived, or no
+progress — the robot has not moved ``progress_radius_m`` in ``progress_timeout_s`` (Nav2's progress checker), which
+the planner turns into ``ERROR_TIMEOUT``. A controller that (re)starts late gets the planner's newest status and the
+smoother's newest path from their latched topics. The robot's footprint radius comes from the robot description
+the sim latches (:mod:`mjnav.runtime.robot`).
 """
 
 from __future__ import annotations
@@ -34,8 +37,12 @@ from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime import Service
 from mjnav.runtime.pose import PoseInput
+from mjnav.runtime.robot import RobotModel
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
+_FEEDBACK = "mjnav_msgs/msg/ControllerFeedback"
+#: Sim seconds without a scan, while a goal is active, after which the status says the controller lacks scans.
+STARVED_AFTER_S = 5.0
 #: Map value (occupancy probability, %) from which a cell counts as a wall for the collision check.
 OCCUPIED = 65
 
@@ -60,24 +67,21 @@ class ControllerConfig:
         yaw_goal_tolerance_rad: then turn in place until the heading is within this of the goal's yaw.
         rotate_gain_per_s: turn rate per radian of heading error, ω = k·e, clamped to
             [``rotate_min_radps``, ``rotate_max_radps``] in magnitude.
-        robot_radius_m: subtracted from lidar ranges to get the distance from the robot's edge.
         front_sector_rad: full width of the sector in front whose nearest return slows the robot (returns the
             tracker sees moving away from the robot left out).
         pose_timeout_s: stop when the newest pose is older than this (sim seconds).
-        path_timeout_s: stop when no path arrived for this long (sim seconds; the planner re-sends every second).
         lost_distance_m: stop when the robot is further than this from the path.
-        collision_margin_m: clearance the collision check keeps beyond ``robot_radius_m``.
-        chord_margin_m: the straight line to the lookahead point keeps this beyond ``robot_radius_m`` from every
-            scan point, else the lookahead shrinks (pure pursuit cuts a corner along that line); as the smoother
-            keeps its path ``margin_m`` off the inscribed radius.
+        collision_margin_m: clearance the collision check keeps beyond the robot's footprint radius.
+        chord_margin_m: the straight line to the lookahead point keeps this beyond the robot's footprint radius
+            from every scan point, else the lookahead shrinks (pure pursuit cuts a corner along that line); as the
+            smoother keeps its path ``margin_m`` off the inscribed radius.
         collision_static_horizon_s: how far ahead (seconds of the commanded arc) static scan points are checked.
         collision_moving_horizon_s: how far ahead moving scan points are checked.
         moving_speed_mps: scan points moving faster than this between two scans count as moving.
         scan_timeout_s: stop when the newest scan is older than this (sim s): the collision check needs one.
-        progress_timeout_s, progress_radius_m: fail the goal (``ERROR_TIMEOUT``) when the robot stayed within
-            ``progress_radius_m`` for ``progress_timeout_s`` sim seconds while the goal was active.
-        planner_timeout_s: fail the goal (``ERROR_TIMEOUT``) when the planner's ``following`` heartbeat (every
-            second) has been silent this long, sim seconds.
+        progress_timeout_s, progress_radius_m: report no progress (the planner fails the goal with
+            ``ERROR_TIMEOUT``) when the robot stayed within ``progress_radius_m`` for ``progress_timeout_s`` sim
+            seconds while the goal was active.
     """
 
     rate_hz: float = 20.0
@@ -94,10 +98,8 @@ class ControllerConfig:
     rotate_gain_per_s: float = 1.5
     rotate_min_radps: float = 0.2
     rotate_max_radps: float = 1.0
-    robot_radius_m: float = 0.19
     front_sector_rad: float = 1.6
     pose_timeout_s: float = 0.5
-    path_timeout_s: float = 3.0
     lost_distance_m: float = 1.0
     collision_margin_m: float = 0.02
     chord_margin_m: float = 0.1
@@ -107,20 +109,17 @@ class ControllerConfig:
     scan_timeout_s: float = 0.5
     progress_timeout_s: float = 20.0
     progress_radius_m: float = 0.25
-    planner_timeout_s: float = 15.0
 
     def __post_init__(self) -> None:
         for name in (
             "max_speed_mps",
             "goal_tolerance_m",
             "pose_timeout_s",
-            "path_timeout_s",
             "lost_distance_m",
             "front_sector_rad",
             "scan_timeout_s",
             "progress_timeout_s",
             "progress_radius_m",
-            "planner_timeout_s",
             "yaw_goal_tolerance_rad",
             "rotate_gain_per_s",
             "rotate_min_radps",
@@ -145,10 +144,10 @@ class ControllerConfig:
             approach_distance_m=self.approach_distance_m,
         )
 
-    def collision_params(self) -> CollisionCheckParams:
-        """The collision check these settings stand for."""
+    def collision_params(self, robot_radius_m: float) -> CollisionCheckParams:
+        """The collision check these settings stand for, for a robot of footprint radius ``robot_radius_m``."""
         return CollisionCheckParams(
-            robot_radius_m=self.robot_radius_m,
+            robot_radius_m=robot_radius_m,
             margin_m=self.collision_margin_m,
             static_horizon_s=self.collision_static_horizon_s,
             moving_horizon_s=self.collision_moving_horizon_s,
@@ -173,37 +172,62 @@ class ControllerService(Service[ControllerConfig]):
 
     def configure(self) -> None:
         self.pursuit = PurePursuit(self.config.pursuit_params())
-        self.collision = self.config.collision_params()
         self.tracking = TrackingParams(moving_speed_mps=self.config.moving_speed_mps)
+        self.robot = RobotModel(self.bus)
         self.path_sub = self.bus.subscribe("path")
         self.pose_in = PoseInput(self.bus, self.config.pose_source)
         self.scan_sub = self.bus.subscribe("scan")
         self.map_sub = self.bus.subscribe("map")
         self.status_sub = self.bus.subscribe("goal_status")
         self.cmd_pub = self.bus.publisher("cmd_vel")
-        self.status_pub = self.bus.publisher("goal_status")
+        self.feedback_pub = self.bus.publisher("controller_feedback")
         self.status_cls = msg_class(_STATUS)
-        self.finished: set[int] = set()  # goal ids that ended (a late heartbeat must not revive them)
+        self.feedback_cls = msg_class(_FEEDBACK)
+        self.finished: set[int] = set()  # goal ids that ended (a late status must not revive them)
         self.stopped_reason = ""
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
 
+    def starting(self) -> str:
+        return self.robot.waiting()
+
+    def starved(self) -> str:
+        if self.pose_in.latest() is None:
+            return f"the robot's pose ({self.pose_in.describe()})"
+        if self.goal is not None and (self.obstacles is None or self.now - self.obstacles.stamp_s > STARVED_AFTER_S):
+            return f"scans on {self.scan_sub.key} (the collision check needs them)"
+        return ""
+
     def activate(self) -> None:
-        # Also called again when the sim clock restarts: the goal is re-adopted from the planner's heartbeat.
+        # Also called again when the sim clock restarts: the goal is re-adopted from the planner's next status.
         self.goal: Any = None  # the GoalStatus that made the current goal active
         self.goal_since = math.inf  # its sim time: older paths belong to earlier goals
-        self.heartbeat = -math.inf  # sim time of the planner's newest "following" for the goal
         self.progress: tuple[float, float, float] | None = None  # (x, y, sim time) the robot last moved away from
         self.at_goal_xy = False  # latched once within goal_tolerance_m of the goal: only the final turn remains
         self.path_msg: Any = None  # newest nav_msgs/Path received
-        self.path_received = -math.inf  # sim time it arrived
         self.path_points: Any = None
         self.path_points_msg: Any = None
         self.speed = 0.0
+        self.now = 0.0
+        self.reported: tuple[int, int, str] | None = None  # (goal id, state, text) of the newest feedback sent
         self.pursuit.reset()
         self.pose_in.reset()
         self.obstacles: TrackedScan | None = None  # the newest scan, fused
         self.walls: tuple[GridFrame, Any] | None = None  # the map's occupied cells, grown by one cell
+        self.robot_version = 0
+        self.collision: CollisionCheckParams | None = None
+        self.radius_m = math.nan
+
+    def _robot_facts(self) -> None:
+        """The collision check and the chord clearance for the robot the description names (rebuilt when it
+        changes)."""
+        if self.robot.version == self.robot_version:
+            return
+        robot = self.robot.current
+        assert robot is not None  # starting() waited for it
+        self.robot_version = self.robot.version
+        self.radius_m = robot.radius_m
+        self.collision = self.config.collision_params(robot.radius_m)
 
     def _update_obstacles(self) -> None:
         """Fuse a new scan: its points in the map frame (at the pose of its stamp) and their velocities."""
@@ -242,6 +266,7 @@ class ControllerService(Service[ControllerConfig]):
         """(v, ω) after the collision check against the newest scan ((0, 0) without a recent one)."""
         if self.obstacles is None or now - self.obstacles.stamp_s > self.config.scan_timeout_s:
             return 0.0, 0.0  # no recent scan: nothing to check the command against
+        assert self.collision is not None
         points, velocities = self.obstacles.points, self.obstacles.velocities
         local = pose.inverse().transform_points(points)
         c, s = math.cos(pose.theta), math.sin(pose.theta)
@@ -255,12 +280,34 @@ class ControllerService(Service[ControllerConfig]):
             )  # fmt: skip
         return safe_v, safe_w
 
-    def _stop(self, reason: str) -> None:
+    def _stop(self, reason: str, detail: str = "") -> None:
+        """Command zero; while a goal is active, tell the planner why (``reason``: no numbers, so that the
+        feedback goes out when the reason changes, not at every step; ``detail`` only goes to the log)."""
         self.cmd_pub.put(ros.twist(0.0, 0.0))
         self.speed = 0.0
         if reason != self.stopped_reason:
-            self.log.info("stopped: %s", reason)
+            self.log.info("stopped: %s%s", reason, f" ({detail})" if detail else "")
             self.stopped_reason = reason
+        if self.goal is not None:
+            self._report(self.feedback_cls.STATE_HALTED, reason)
+
+    def _report(self, state: int, text: str = "", goal: Any = None) -> None:
+        """Send the controller's feedback on the active goal (or ``goal``) when its state or text changed."""
+        goal = goal if goal is not None else self.goal
+        key = (int(goal.goal_id), state, text)
+        if key == self.reported:
+            return
+        self.reported = key
+        remaining = self.pursuit.status.remaining_m if self.pursuit.status.mode != "idle" else -1.0
+        self.feedback_pub.put(
+            self.feedback_cls(
+                header=ros.header(self.now, "map"),
+                goal_id=goal.goal_id,
+                state=state,
+                distance_remaining_m=float(remaining),
+                text=text,
+            )
+        )
 
     def _track_goal(self) -> None:
         cls = self.status_cls
@@ -274,17 +321,16 @@ class ControllerService(Service[ControllerConfig]):
                     self.progress = None
                     self.at_goal_xy = False
                     self.pursuit.reset()
-                self.heartbeat = ros.seconds(status.header.stamp)
             elif status.state in (cls.STATE_FAILED, cls.STATE_CANCELED, cls.STATE_REACHED):
                 self.finished.add(status.goal_id)
                 if self.goal is not None and status.goal_id == self.goal.goal_id:
                     self.goal = None
 
-    def _current_path(self, now: float) -> Any:
+    def _current_path(self) -> Any:
         """The path of the active goal: the newest one stamped since the goal started following, or None."""
         msg = self.path_sub.take()
         if msg is not None:
-            self.path_msg, self.path_received = msg, now
+            self.path_msg = msg
         msg = self.path_msg
         if self.goal is None or msg is None or ros.seconds(msg.header.stamp) < self.goal_since:
             return None  # nothing yet, or a path of an earlier goal
@@ -293,20 +339,19 @@ class ControllerService(Service[ControllerConfig]):
         return self.path_points
 
     def step(self, now: float) -> None:
+        self.now = now
+        self._robot_facts()
         self.pose_in.update()
         self._update_obstacles()
         self._track_goal()
-        path = self._current_path(now)
+        path = self._current_path()
         if self.goal is None:
             self._stop("no active goal")
             return
-        if self._goal_expired(now):
+        if self._no_progress(now):
             return
         if path is None or len(path) < 2:
-            self._stop("no path")
-            return
-        if now - self.path_received > self.config.path_timeout_s:
-            self._stop(f"path older than {self.config.path_timeout_s} s: is the smoother running?")
+            self._stop("no path yet")
             return
         latest = self.pose_in.latest()
         if latest is None or now - latest[0] > self.config.pose_timeout_s:
@@ -323,11 +368,11 @@ class ControllerService(Service[ControllerConfig]):
                 path,
                 self._obstacle_distance(pose),
                 obstacles_xy=None if self.obstacles is None else self.obstacles.points,
-                chord_clearance_m=self.config.robot_radius_m + self.config.chord_margin_m,
+                chord_clearance_m=self.radius_m + self.config.chord_margin_m,
             )
         except PathError as exc:
             self.path_msg = None
-            self._stop(f"unusable path: {exc}")
+            self._stop("unusable path", str(exc))
             return
         status = self.pursuit.status
         if self.pursuit.goal_reached:
@@ -335,35 +380,34 @@ class ControllerService(Service[ControllerConfig]):
             self._turn_to_goal(now, pose)
             return
         if abs(status.cross_track_m) > self.config.lost_distance_m:
-            self._stop(f"{abs(status.cross_track_m):.2f} m off the path: waiting for a new plan")
+            self._stop("off the path: waiting for a new plan", f"{abs(status.cross_track_m):.2f} m off")
             return
-        v, w = self._checked(now, pose, v, w)
+        self._drive(*self._checked(now, pose, v, w))
+
+    def _drive(self, v: float, w: float) -> None:
         self.stopped_reason = ""
         self.speed = v
         self.cmd_pub.put(ros.twist(v, w))
+        self._report(self.feedback_cls.STATE_FOLLOWING)
 
     def _turn_to_goal(self, now: float, pose: Pose2D) -> None:
-        """At the goal's position: turn in place towards its yaw, or report reached (yaw-free goals at once)."""
+        """At the goal's position: turn in place towards its yaw, or report the arrival (yaw-free goals at once)."""
         error = goal_yaw_error(self.goal.goal.pose, pose.theta)
         cfg = self.config
         if error is None or abs(error) <= cfg.yaw_goal_tolerance_rad:
+            goal = self.goal
+            self._end_goal(self.feedback_cls.STATE_ARRIVED, "")
             self._stop("goal reached")
-            self._report_reached(now)
+            self.log.info("goal %d: arrived", goal.goal_id)
             return
         w = math.copysign(
             min(max(cfg.rotate_gain_per_s * abs(error), cfg.rotate_min_radps), cfg.rotate_max_radps), error
         )
-        v, w = self._checked(now, pose, 0.0, w)
-        self.stopped_reason = ""
-        self.speed = v
-        self.cmd_pub.put(ros.twist(v, w))
+        self._drive(*self._checked(now, pose, 0.0, w))
 
-    def _goal_expired(self, now: float) -> bool:
-        """Fail the active goal when the planner went silent or the robot stopped making progress."""
+    def _no_progress(self, now: float) -> bool:
+        """Report no progress (the planner fails the goal) when the robot has not moved for too long."""
         cfg = self.config
-        if now - self.heartbeat > cfg.planner_timeout_s:
-            self._fail(now, f"no word from the planner for {now - self.heartbeat:.1f} s")
-            return True
         latest = self.pose_in.latest()
         if latest is None:
             return False
@@ -374,29 +418,20 @@ class ControllerService(Service[ControllerConfig]):
             self.progress = (pose.x, pose.y, now)
             return False
         if now - self.progress[2] > cfg.progress_timeout_s:
-            self._fail(now, f"no progress: moved less than {cfg.progress_radius_m} m in {cfg.progress_timeout_s} s")
+            text = f"no progress: moved less than {cfg.progress_radius_m} m in {cfg.progress_timeout_s} s"
+            goal = self.goal
+            self._end_goal(self.feedback_cls.STATE_NO_PROGRESS, text)
+            self._stop(text)
+            self.log.warning("goal %d: %s", goal.goal_id, text)
             return True
         return False
 
-    def _fail(self, now: float, text: str) -> None:
+    def _end_goal(self, state: int, text: str) -> None:
+        """The controller is done with the active goal: report why; the planner ends it."""
         goal = self.goal
-        self._stop(text)
-        self._end_goal(now, goal, self.status_cls.STATE_FAILED, self.status_cls.ERROR_TIMEOUT, text)
-        self.log.warning("goal %d failed: %s", goal.goal_id, text)
-
-    def _end_goal(self, now: float, goal: Any, state: int, error: int, text: str) -> None:
+        self._report(state, text, goal)
         self.goal = None
         self.finished.add(goal.goal_id)
-        self.status_pub.put(
-            self.status_cls(
-                header=ros.header(now, "map"),
-                goal_id=goal.goal_id,
-                state=state,
-                error_code=error,
-                error_text=text,
-                goal=goal.goal,
-            )
-        )
 
     def _obstacle_distance(self, pose: Pose2D) -> float:
         """d_O of the proximity heuristic: the nearest return of the newest scan in the front sector, metres (from
@@ -417,11 +452,6 @@ class ControllerService(Service[ControllerConfig]):
             scan.ranges,
             sector_rad=self.config.front_sector_rad,
             range_min_m=float(scan.range_min),
-            robot_radius_m=self.config.robot_radius_m,
+            robot_radius_m=self.radius_m,
             ignore=ignore,
         )
-
-    def _report_reached(self, now: float) -> None:
-        goal = self.goal
-        self._end_goal(now, goal, self.status_cls.STATE_REACHED, self.status_cls.ERROR_NONE, "")
-        self.log.info("goal %d reached", goal.goal_id)

@@ -12,9 +12,15 @@ starts from a saved map. Returns of a moving obstacle (their motion between two 
 collision check tracks it) clear the cells before them and mark nothing: the costmap holds what stays, and the
 controller waits for what passes.
 
-With ``map_source = "slam"`` the static layer is SLAM's ``map`` (resampled onto the mapper's fixed grid) and an
+With ``map_source = "slam"`` the static layer is SLAM's ``map`` (resampled onto the mapper's grid) and an
 obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` at SLAM's pose; ``save_map`` then
 saves the newest SLAM map.
+
+The grid grows with what the robot explores (Nav2's static layer resizes to the map it receives): it starts around
+the first scan and is extended, on the same cells, whenever a scan could reach beyond it (the lidar's range around
+the sensor, ``grow_margin_m`` more so that it grows seldom), and to cover SLAM's map in slam mode. The robot's
+footprint radius (the costmap's inscribed band) and where the lidar sits come from the robot description the sim
+latches (:mod:`mjnav.runtime.robot`); nothing about the robot or the world is configured here.
 """
 
 from __future__ import annotations
@@ -33,8 +39,13 @@ from mjnav.geometry import Pose2D
 from mjnav.mapping import CellState, OccupancyGrid, inflation_costmap, read_ros_map, write_ros_map
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
+from mjnav.robot import DescriptionError
 from mjnav.runtime import Service
 from mjnav.runtime.pose import PoseInput
+from mjnav.runtime.robot import RobotModel
+
+#: Sim seconds without a scan used after which the status says the mapper lacks scans.
+STARVED_AFTER_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -52,17 +63,16 @@ class MapperConfig:
             (:func:`mjnav.control.collision.track_scan`, as the controller's collision check sees them): they clear
             the cells before them and mark nothing. The planner then plans through a cart crossing its way, which
             the controller waits for, rather than around each place the cart was.
-        width_m, height_m, resolution_m, origin_m: the grid (origin = map-frame corner of cell (0, 0)); ``mjnav
-            up`` sizes it to the sim's world (:meth:`mjnav.runtime.launcher.Launcher._settings_from_world`).
-        laser_offset_m: lidar position in base_link (x, y), metres (``mjnav up``: the robot model's lidar site).
+        resolution_m: cell size of the grid, metres.
+        grow_margin_m: when a scan could reach beyond the grid, the grid grows to the lidar's reach plus this much
+            (metres), so that it grows every few metres of driving, not at every scan.
         max_range_m: readings at or beyond this are "no return" (free up to it).
-        robot_radius_m: inscribed radius for the costmap's lethal inflation (``mjnav up``: the robot model's
-            footprint radius).
         inflation_radius_m: cost decays to 0 at this distance from obstacles (0.7 left a 1.4 m corridor one
             zero-cost line, its centre: paths 20 % longer than the shortest in the maze; 0.5, near Nav2's 0.55,
-            leaves a band to round corners in).
+            leaves a band to round corners in). Cells within the robot's footprint radius (from its description)
+            of an obstacle are inscribed (99); a robot wider than this radius inflates to its own radius.
         cost_scaling_factor: exponential decay rate of the cost, 1/m.
-        prior_map: ROS map YAML to start from ("" = unknown everywhere; its grid replaces width/height/origin).
+        prior_map: ROS map YAML to start from ("" = unknown everywhere; the grid starts as its extent).
         save_path: ROS map YAML written on exit ("" = don't).
         maps_dir: the only directory the ``save_map`` request may write to; its path is taken relative to it.
         checkpoint_period_s: how often (sim s) the map is checkpointed to the run's state directory, from which a
@@ -75,13 +85,9 @@ class MapperConfig:
     pose_source: Literal["slam", "ground_truth", "odom"] = "slam"
     obstacle_range_m: float = 3.0
     moving_speed_mps: float = 0.25
-    width_m: float = 20.0
-    height_m: float = 20.0
     resolution_m: float = 0.05
-    origin_m: tuple[float, float] = (-10.0, -10.0)
-    laser_offset_m: tuple[float, float] = (0.0, 0.0)
+    grow_margin_m: float = 5.0
     max_range_m: float = 12.0
-    robot_radius_m: float = 0.19
     inflation_radius_m: float = 0.5
     cost_scaling_factor: float = 5.0
     prior_map: str = ""
@@ -90,11 +96,11 @@ class MapperConfig:
     checkpoint_period_s: float = 2.0
 
     def __post_init__(self) -> None:
-        for name in ("publish_rate_hz", "width_m", "height_m", "resolution_m", "max_range_m", "moving_speed_mps"):
+        for name in ("publish_rate_hz", "resolution_m", "max_range_m", "moving_speed_mps", "inflation_radius_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if not 0 <= self.robot_radius_m <= self.inflation_radius_m:
-            raise ValueError("need 0 <= robot_radius_m <= inflation_radius_m")
+        if not self.grow_margin_m >= 0:
+            raise ValueError(f"grow_margin_m must be >= 0, got {self.grow_margin_m}")
         if not self.checkpoint_period_s >= 0:
             raise ValueError(f"checkpoint_period_s must be >= 0, got {self.checkpoint_period_s}")
         if not self.maps_dir:
@@ -111,25 +117,19 @@ class MapperService(Service[MapperConfig]):
 
     def configure(self) -> None:
         cfg = self.config
+        self.grid: OccupancyGrid | None = None  # none until the first scan (or a prior or resumed map)
         if cfg.prior_map:
             prior = read_ros_map(cfg.prior_map)
-            self.grid = OccupancyGrid.from_ros_map(prior)
+            self._set_grid(OccupancyGrid.from_ros_map(prior))
             self.log.info(
                 "prior map %s: %dx%d cells at %.3f m", cfg.prior_map, *prior.occupancy.shape[::-1], prior.resolution_m
             )
-        else:
-            self.grid = OccupancyGrid(
-                round(cfg.width_m / cfg.resolution_m),
-                round(cfg.height_m / cfg.resolution_m),
-                cfg.resolution_m,
-                origin_m=cfg.origin_m,
-            )
-        self.frame = GridFrame(self.grid.resolution_m, self.grid.origin_m, self.grid.shape)
         self.seeded = bool(cfg.prior_map)  # something is known: a prior or resumed map, or enough scans
         self.slam_mode = cfg.map_source == "slam"
         if not self.slam_mode:
             self._restore_checkpoint()
         self.scan = self.bus.subscribe("scan")
+        self.robot = RobotModel(self.bus)
         self.pose_in = PoseInput(self.bus, cfg.pose_source)
         self.static = self.bus.subscribe("map") if self.slam_mode else None
         # On SLAM's pose, SLAM owns the ``map`` topic; the mapper's own grid is then only the costmap's layer.
@@ -138,21 +138,36 @@ class MapperService(Service[MapperConfig]):
         self.obstacles: Any = np.zeros((0, 2))  # the obstacle layer: newest scan's static returns in map, (M, 2)
         self.tracked: TrackedScan | None = None  # the previous scan, for its returns' motion
         self.tracking = TrackingParams(moving_speed_mps=cfg.moving_speed_mps)
-        self._centres: Any = None  # (H·W, 2) map-frame cell centres of the grid (slam mode, computed once)
         self.bus.serve("save_map", self._on_save)
-        self.laser = Pose2D(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0)
         self.scans = 0
         self.skipped = 0
         self.checkpointed_scans = 0
         self.next_checkpoint = 0.0
+        self._inflation_warned = False
         # Load the compiled scan integration now, on a scratch grid.
         OccupancyGrid(8, 8, 0.1).integrate_scan((0.4, 0.4, 0.0), np.zeros(1), np.ones(1), 1.0)
+
+    def starting(self) -> str:
+        return self.robot.waiting()
+
+    def starved(self) -> str:
+        if self.skipped_since_use:
+            return f"the robot's pose at the scans' times ({self.pose_in.describe()})"
+        if self.now - self.last_scan_used > STARVED_AFTER_S:
+            return f"scans on {self.scan.key} (none used for {STARVED_AFTER_S:g} s)"
+        return ""
 
     def activate(self) -> None:
         self.pose_in.reset()
         self.next_publish = 0.0
+        self.now = 0.0
+        self.last_scan_used = -math.inf  # sim time of the newest scan integrated (set at the first step)
+        self.skipped_since_use = 0  # scans skipped for want of a pose since one was used
 
     def step(self, now: float) -> None:
+        self.now = now
+        if self.last_scan_used == -math.inf:
+            self.last_scan_used = now  # starvation counts from the first step
         self.pose_in.update()
         scan = self.scan.take()
         if scan is not None:
@@ -175,9 +190,33 @@ class MapperService(Service[MapperConfig]):
         if not self.seeded:
             if self.slam_mode:
                 self.seeded = self.scans > 0 or (self.static is not None and self.static.latest() is not None)
-            elif self.scans:
+            elif self.scans and self.grid is not None:
                 self.seeded = bool((self.grid.states() != CellState.UNKNOWN).any())
-        return self.seeded
+        return self.seeded and self.grid is not None
+
+    # ------------------------------------------------------------------------------------------------- grid
+
+    def _set_grid(self, grid: OccupancyGrid) -> None:
+        self.grid = grid
+        self.frame = GridFrame(grid.resolution_m, grid.origin_m, grid.shape)
+        self._centres: Any = None  # (H·W, 2) map-frame cell centres of the grid (slam mode, computed on use)
+
+    def _cover(self, x_min: float, y_min: float, x_max: float, y_max: float) -> OccupancyGrid:
+        """The grid, grown (or made) to hold the rectangle, ``grow_margin_m`` beyond it when it must grow."""
+        grid = self.grid
+        if grid is not None:
+            x0, x1, y0, y1 = grid.extent_m
+            if x0 <= x_min and y0 <= y_min and x_max <= x1 and y_max <= y1:
+                return grid
+        m = self.config.grow_margin_m
+        if grid is None:
+            res = self.config.resolution_m
+            x0, y0 = math.floor((x_min - m) / res) * res, math.floor((y_min - m) / res) * res
+            grid = OccupancyGrid(1, 1, res, (x0, y0))
+        grown = grid.grown_to(x_min - m, y_min - m, x_max + m, y_max + m)
+        self.log.debug("grid grown to %dx%d cells from %s", grown.width_cells, grown.height_cells, grown.origin_m)
+        self._set_grid(grown)
+        return grown
 
     # ------------------------------------------------------------------------------------------- checkpoints
 
@@ -187,7 +226,7 @@ class MapperService(Service[MapperConfig]):
     def _checkpoint(self) -> None:
         """Write the log-odds grid to the state directory (atomically: a crash mid-write keeps the last one)."""
         path = self._checkpoint_file()
-        if path is None:
+        if path is None or self.grid is None:
             return
         tmp = path.with_suffix(".tmp.npz")
         g = self.grid
@@ -196,43 +235,64 @@ class MapperService(Service[MapperConfig]):
         self.checkpointed_scans = self.scans
 
     def _restore_checkpoint(self) -> None:
-        """Resume from the run's checkpoint, if a previous mapper process of this run left one for this grid."""
+        """Resume from the run's checkpoint, if a previous mapper process of this run left one at this resolution
+        (a prior map's grid, if any, grows to hold it)."""
         path = self._checkpoint_file()
         if path is None or not path.exists():
             return
-        g = self.grid
         try:
             with np.load(path) as data:
                 log_odds = np.asarray(data["log_odds"], dtype=np.float64)
-                same = (
-                    log_odds.shape == g.log_odds.shape
-                    and float(data["resolution_m"]) == g.resolution_m
-                    and tuple(np.asarray(data["origin_m"]).tolist()) == tuple(g.origin_m)
-                )
+                resolution = float(data["resolution_m"])
+                origin = tuple(float(v) for v in np.asarray(data["origin_m"]).tolist())
+            if log_odds.ndim != 2 or len(origin) != 2:
+                raise ValueError(f"log_odds of shape {log_odds.shape}, origin {origin}")
         except (OSError, ValueError, KeyError) as exc:
             self.log.warning("map checkpoint %s unreadable (%s): starting from scratch", path, exc)
             return
-        if not same:
-            self.log.warning("map checkpoint %s is for another grid: starting from scratch", path)
+        if resolution != self.config.resolution_m and self.grid is None:
+            self.log.warning(
+                "map checkpoint %s has %g m cells, the mapper %g m: starting from scratch",
+                path, resolution, self.config.resolution_m,
+            )  # fmt: skip
             return
-        g.log_odds[...] = log_odds
+        h, w = log_odds.shape
+        saved = OccupancyGrid(w, h, resolution, (origin[0], origin[1]))
+        saved.log_odds[...] = log_odds
+        self._set_grid(saved)
         self.seeded = True
         known = int(np.count_nonzero(log_odds))
         self.log.info("resumed the map from checkpoint %s (%d known cells)", path, known)
+
+    # ------------------------------------------------------------------------------------------------ scans
 
     def _integrate(self, scan: Any) -> None:
         stamp = ros.seconds(scan.header.stamp)
         pose = self.pose_in.at(stamp)
         if pose is None:
             self.skipped += 1
+            self.skipped_since_use += 1
             if self.skipped in (1, 10, 100) or self.skipped % 1000 == 0:
                 self.log.warning(
                     "no %s pose at scan time %.3f s: %d scan(s) skipped", self.config.pose_source, stamp, self.skipped
                 )
             return
-        sensor = pose * self.laser
+        robot = self.robot.current
+        assert robot is not None  # starting() waited for it
+        try:
+            laser = Pose2D(*robot.frame(scan.header.frame_id).planar)
+        except DescriptionError as exc:
+            self.skipped += 1
+            if self.skipped in (1, 10, 100) or self.skipped % 1000 == 0:
+                self.log.warning("scan at %.3f s not used: %s", stamp, exc)
+            return
+        self.skipped_since_use = 0
+        self.last_scan_used = self.now
+        sensor = pose * laser
         ranges = np.asarray(scan.ranges, dtype=np.float64)
         max_range = min(float(scan.range_max), self.config.max_range_m)
+        # Everything this scan can touch lies within max_range of the sensor: the grid must hold it.
+        grid = self._cover(sensor.x - max_range, sensor.y - max_range, sensor.x + max_range, sensor.y + max_range)
         tracked = track_scan(
             stamp,
             (sensor.x, sensor.y, sensor.theta),
@@ -255,10 +315,11 @@ class MapperService(Service[MapperConfig]):
         marks = np.ones(len(ranges), dtype=bool)
         marks[tracked.beams[moving]] = False
         angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
-        self.grid.integrate_scan(sensor, angles, ranges, max_range, min_range_m=float(scan.range_min), marks=marks)
+        grid.integrate_scan(sensor, angles, ranges, max_range, min_range_m=float(scan.range_min), marks=marks)
 
     def _on_walls(self, points: Any) -> Any:
         """(M,) True for points on or next to a cell the grid has as occupied: static, whatever two scans say."""
+        assert self.grid is not None
         log_odds, threshold = self.grid.log_odds, self.grid.model.occupied_threshold
         cells = self.frame.world_to_cells(points)
         h, w = log_odds.shape
@@ -273,13 +334,18 @@ class MapperService(Service[MapperConfig]):
     def occupancy(self) -> Any:
         """(H, W) int8 occupancy the costmap inflates (0..100, −1 unknown): the own map's states (scan mode), or
         SLAM's map resampled onto the grid with the obstacle layer's returns marked occupied (slam mode)."""
+        assert self.grid is not None
         if not self.slam_mode:
             return self.grid.states()
         assert self.static is not None
-        occ = np.full(self.grid.shape, -1, dtype=np.int8)
         msg = self.static.latest()
         if msg is not None:
             cells, frame = ros.grid_frame(msg)
+            (x0, y0), (x1, y1) = frame.cells_to_world([[0, 0], [frame.shape[0] - 1, frame.shape[1] - 1]])
+            half = frame.resolution_m / 2
+            self._cover(x0 - half, y0 - half, x1 + half, y1 + half)  # the grid holds SLAM's whole map
+        occ = np.full(self.grid.shape, -1, dtype=np.int8)
+        if msg is not None:
             if self._centres is None:
                 rows, cols = np.indices(self.grid.shape)
                 self._centres = self.frame.cells_to_world(np.column_stack((rows.ravel(), cols.ravel())))
@@ -291,25 +357,39 @@ class MapperService(Service[MapperConfig]):
         return occ
 
     def costmap(self) -> Any:
-        """The current inflated costmap, (H, W) int8 (0..100, −1 unknown)."""
+        """The current inflated costmap, (H, W) int8 (0..100, −1 unknown): cells within the robot's footprint
+        radius of an obstacle are inscribed (99), the cost decays to 0 at ``inflation_radius_m`` (or at the
+        robot's radius, when it is the larger)."""
         cfg = self.config
-        return inflation_costmap(
-            self.occupancy(),
-            self.grid.resolution_m,
-            cfg.robot_radius_m,
-            cfg.inflation_radius_m,
-            cfg.cost_scaling_factor,
-        )
+        robot = self.robot.current
+        assert robot is not None and self.grid is not None
+        occupancy = self.occupancy()  # may grow the grid (slam mode)
+        inflation = cfg.inflation_radius_m
+        if robot.radius_m > inflation:
+            if not self._inflation_warned:
+                self.log.warning(
+                    "inflation_radius_m %.2f m is less than the robot's radius %.3f m: inflating to the radius",
+                    inflation, robot.radius_m,
+                )  # fmt: skip
+                self._inflation_warned = True
+            inflation = robot.radius_m
+        return inflation_costmap(occupancy, self.grid.resolution_m, robot.radius_m, inflation, cfg.cost_scaling_factor)
 
     def _publish(self, now: float) -> None:
+        costmap = self.costmap()
+        assert self.grid is not None
         origin = (self.grid.origin_m[0], self.grid.origin_m[1])
         res = self.grid.resolution_m
         if self.map_pub is not None:
             self.map_pub.put(ros.occupancy_grid(now, "map", self.grid.to_ros(), res, origin))
-        self.costmap_pub.put(ros.occupancy_grid(now, "map", self.costmap(), res, origin))
+        self.costmap_pub.put(ros.occupancy_grid(now, "map", costmap, res, origin))
 
     def save(self, yaml_path: str | Path) -> Path:
-        """Write the map (in slam mode: SLAM's newest) as trinary PGM + YAML; returns the YAML path."""
+        """Write the map (in slam mode: SLAM's newest) as trinary PGM + YAML; returns the YAML path.
+
+        Raises:
+            ValueError: there is no map yet.
+        """
         grid = self.grid
         if self.static is not None:
             msg = self.static.latest()
@@ -318,6 +398,8 @@ class MapperService(Service[MapperConfig]):
             info = msg.info
             origin_xy = (info.origin.position.x, info.origin.position.y)
             grid = OccupancyGrid.from_ros(msg.data, info.width, info.height, info.resolution, origin_xy)
+        if grid is None:
+            raise ValueError("no map yet: no scan was used")
         origin = (grid.origin_m[0], grid.origin_m[1], 0.0)
         return write_ros_map(yaml_path, grid.states(), grid.resolution_m, origin)
 

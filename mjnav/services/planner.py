@@ -11,10 +11,15 @@ Goals come two ways: on the ``goal`` topic (fire and forget, like RViz's 2D Goal
 ``goal_status`` messages will carry, or rejected with a typed code (frame not ``map``, outside the costmap, in an
 obstacle). Goals, cancels and navigate requests take effect at the planner's next step in the order they arrived
 (requests go through the bus's staging like messages, :meth:`mjnav.bus.Bus.defer`); a newer goal supersedes the
-active one. The controller reports ``reached`` (or fails the goal when
-the robot makes no progress); ``cancel`` ends a goal. Unknown space is traversable at an extra cost (see
-:mod:`mjnav.planning.costmap`). A costmap older than ``costmap_timeout_s`` is not planned on: the plan is withdrawn
-(the robot stops) until a fresh one arrives.
+active one.
+
+The planner owns every goal: it alone publishes ``goal_status``. The controller reports on ``controller_feedback``;
+its arrival ends the goal as reached (stamped when the robot arrived), its "no progress" as failed with
+``ERROR_TIMEOUT``; ``cancel`` ends a goal as canceled. ``plan`` and ``goal_status`` are latched, so a smoother or
+controller that (re)starts later gets the current ones from the transport, with no periodic re-send. Unknown space
+is traversable at an extra cost (see :mod:`mjnav.planning.costmap`). A costmap older than ``costmap_timeout_s`` is
+not planned on: the plan is withdrawn (the robot stops) until a fresh one arrives. The costmap may grow between two
+plans (it follows what the robot explores); the current route is carried over to the new grid.
 
 The active goal and the next goal id are checkpointed in the run's state directory, so a planner restarted mid-goal
 (``mjnav up`` restarts crashed and hung services) resumes the same goal under the same id.
@@ -32,6 +37,7 @@ from typing import Any, Literal
 import numpy as np
 
 from mjnav.geometry import Pose2D
+from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import decode, encode, msg_class, ros
 from mjnav.planning import (
     ALGORITHMS,
@@ -69,8 +75,6 @@ class PlannerConfig:
         start_clearance_m: free a disc of this radius around the robot before planning (it may stand in the
             inscribed band after passing close to a wall).
         replan_period_s: how often (sim s) a cheaper route is looked for while following.
-        heartbeat_period_s: how often (sim s) the current plan and the ``following`` status are re-sent, so a
-            restarted smoother or controller picks the goal up again.
         improvement: switch to a new route only when it is cheaper than this fraction of the remaining one.
         costmap_timeout_s: a costmap stamped longer ago than this (sim s) is stale: not planned on, and the plan is
             withdrawn until a fresh one arrives (the mapper publishes at 2 Hz).
@@ -87,7 +91,6 @@ class PlannerConfig:
     unknown_cost: float = 0.5
     start_clearance_m: float = 0.25
     replan_period_s: float = 2.0
-    heartbeat_period_s: float = 1.0
     improvement: float = 0.9
     costmap_timeout_s: float = 3.0
     seed: int = 0
@@ -116,10 +119,9 @@ class _Goal:
     goal_id: int
     msg: Any
     pose: Pose2D
-    cells: Any = None  # (N, 2) current plan cells
-    cost_grid: Any = None
+    cells: Any = None  # (N, 2) current plan cells, in the grid of ``frame``
+    frame: GridFrame | None = None  # the costmap grid the plan's cells index
     last_plan_t: float = -math.inf
-    last_sent_t: float = -math.inf
     following: bool = False
     path_msg: Any = None
     withdrawn: bool = False  # the plan was withdrawn (stale costmap) and must be sent again
@@ -141,11 +143,12 @@ class PlannerService(Service[PlannerConfig]):
         self.goals = self.bus.subscribe("goal", callback=lambda msg: self._post("goal", msg, 0))
         self.cancels = self.bus.subscribe("cancel", callback=lambda _msg: self._post("cancel", None, 0))
         self.costmap = self.bus.subscribe("costmap")
-        self.status_in = self.bus.subscribe("goal_status")
+        self.feedback = self.bus.subscribe("controller_feedback")
         self.pose_in = PoseInput(self.bus, self.config.pose_source)
         self.plan_pub = self.bus.publisher("plan")
         self.status_pub = self.bus.publisher("goal_status")
         self.status_cls = msg_class(_STATUS)
+        self.feedback_cls = msg_class("mjnav_msgs/msg/ControllerFeedback")
         self.rng = np.random.default_rng(self.config.seed)
         self.goal: _Goal | None = None
         self.next_id = 1
@@ -171,11 +174,21 @@ class PlannerService(Service[PlannerConfig]):
         self.pose_in.reset()
         if self.goal is not None:
             self.goal.cells = None
-            self.goal.last_plan_t = self.goal.last_sent_t = -math.inf
+            self.goal.last_plan_t = -math.inf
+
+    def starved(self) -> str:
+        if self.goal is None:
+            return ""
+        if self.costmap.latest() is None:
+            return f"the costmap on {self.costmap.key} (goal {self.goal.goal_id} waits for it)"
+        if self.pose_in.latest() is None:
+            return f"the robot's pose ({self.pose_in.describe()})"
+        return ""
 
     # ----------------------------------------------------------------------------------------------- status
 
     def _status(self, now: float, goal: _Goal, state: str, error: str = "ERROR_NONE", text: str = "") -> None:
+        """Publish the goal's status, stamped ``now`` (for an end the controller reported: when it happened)."""
         cls = self.status_cls
         self.status_pub.put(
             cls(
@@ -190,9 +203,12 @@ class PlannerService(Service[PlannerConfig]):
         if state in ("FAILED", "CANCELED"):
             self.log.info("goal %d %s %s", goal.goal_id, state.lower(), text)
 
-    def _end(self, now: float, state: str, error: str = "ERROR_NONE", text: str = "") -> None:
+    def _end(
+        self, now: float, state: str, error: str = "ERROR_NONE", text: str = "", stamp: float | None = None
+    ) -> None:
+        """End the active goal: its final status (stamped ``stamp``, default ``now``) and an empty plan."""
         assert self.goal is not None
-        self._status(now, self.goal, state, error, text)
+        self._status(now if stamp is None else stamp, self.goal, state, error, text)
         self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
         self.goal = None
         self._save()
@@ -248,21 +264,24 @@ class PlannerService(Service[PlannerConfig]):
 
     # ----------------------------------------------------------------------------------------------- loop
 
+    def _on_feedback(self, now: float) -> None:
+        """The controller's reports on the active goal: arrived ends it as reached, no progress as failed."""
+        fb = self.feedback_cls
+        for msg in self.feedback.drain():
+            if self.goal is None or msg.goal_id != self.goal.goal_id:
+                continue  # an earlier goal's, or one this planner does not own (restarted meanwhile)
+            stamp = ros.seconds(msg.header.stamp)
+            if msg.state == fb.STATE_ARRIVED:
+                self.log.info("goal %d reached", msg.goal_id)
+                self._end(now, "REACHED", stamp=stamp)
+            elif msg.state == fb.STATE_NO_PROGRESS:
+                self.log.warning("goal %d: %s", msg.goal_id, msg.text)
+                self._end(now, "FAILED", "ERROR_TIMEOUT", msg.text, stamp=stamp)
+            elif msg.state == fb.STATE_HALTED:
+                self.log.debug("goal %d: the controller halted: %s", msg.goal_id, msg.text)
+
     def step(self, now: float) -> None:
-        cls = self.status_cls
-        for status in self.status_in.drain():
-            # The controller ends goals too: reached, or failed for want of progress. (Our own terminal statuses
-            # come back here after the goal was dropped.)
-            if (
-                self.goal is not None
-                and status.goal_id == self.goal.goal_id
-                and status.state in (cls.STATE_REACHED, cls.STATE_FAILED, cls.STATE_CANCELED)
-            ):
-                self.log.info("goal %d ended by the controller: state %d %s", status.goal_id, status.state,
-                              status.error_text)  # fmt: skip
-                self.goal = None
-                self._save()
-                self.plan_pub.put(ros.path_msg(now, "map", np.zeros((0, 2))))
+        self._on_feedback(now)
         with self._lock:
             inbox, self._inbox = self._inbox, []
         for kind, msg, goal_id in inbox:
@@ -273,19 +292,10 @@ class PlannerService(Service[PlannerConfig]):
                 self._accept(now, msg, goal_id)
         if self.goal is not None:
             self._plan(now)
-        goal = self.goal
-        if (
-            goal is not None
-            and goal.following
-            and not goal.withdrawn
-            and now - goal.last_sent_t >= self.config.heartbeat_period_s
-        ):
-            self._send(now, goal)
 
     def _send(self, now: float, goal: _Goal) -> None:
         self.plan_pub.put(goal.path_msg)
         self._status(now, goal, "FOLLOWING")
-        goal.last_sent_t = now
 
     def _accept(self, now: float, msg: Any, goal_id: int = 0) -> None:
         """Make ``msg`` the active goal under ``goal_id`` (0: a goal from the topic, given the next id)."""
@@ -332,6 +342,10 @@ class PlannerService(Service[PlannerConfig]):
         if goal.cells is not None and not fresh:
             return
         cells, frame = ros.grid_frame(costmap_msg)
+        if goal.cells is not None and goal.frame is not None and goal.frame != frame:
+            # The costmap grew: the same route, indexed in the new grid (same cells, shifted).
+            goal.cells = frame.world_to_cells(goal.frame.cells_to_world(goal.cells))
+            goal.frame = frame
         occupied, cost = planning_grid(
             cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost
         )
@@ -377,7 +391,7 @@ class PlannerService(Service[PlannerConfig]):
             and plan.cost >= self.config.improvement * path_cost(remaining, cost)
         ):
             return
-        goal.cells = plan.cells
+        goal.cells, goal.frame = plan.cells, frame
         goal.path_msg = ros.path_msg(now, "map", frame.cells_to_world(plan.cells))
         goal.following = True
         self._send(now, goal)

@@ -6,6 +6,12 @@ in worlds with moving bodies, ``obstacles`` (their true poses), all stamped in s
 from the newest ``cmd_vel``. The simulator's own watchdog zeroes the wheels when that command is older than
 ``watchdog_timeout_s`` of sim time.
 
+The robot's facts come from its model, and the sim is their one source on the bus: before sim time starts it
+latches the robot's MJCF on ``robot_description`` (flattened, :mod:`mjnav.sim.description`) and ``base_link`` →
+each sensor frame on ``tf_static``, as ROS's robot_state_publisher does. Placing the robot at the world's start is
+part of the simulated world: when sim time starts the sim announces that spawn pose on ``initialpose``
+(``announce_spawn``), what an operator would tell SLAM, so every deployment starts the same way.
+
 Velocity mux (ROS's twist_mux with two inputs): a command on ``cmd_vel_teleop`` (``mjnav teleop``, a joystick)
 overrides navigation's ``cmd_vel`` while the newest teleop command is at most ``teleop_timeout_s`` of sim time old;
 navigation's commands are dropped meanwhile, and the next one drives the wheels once teleop has been silent that
@@ -30,9 +36,10 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from mjnav.bus import Bus
+from mjnav.bus import Bus, Publisher
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
+from mjnav.robot import RobotDescription
 from mjnav.runtime import Service
 from mjnav.runtime.lockstep import LockstepBarrier
 
@@ -81,6 +88,9 @@ class SimConfig:
             (2.5 cm of driving at 0.5 m/s); the sim's collision count checks contacts at every physics step.
         odom_noise_scale: multiplies every wheel-odometry error (radius, wheel base, slip): 1 = the default model
             (0.3 % radius, 1 % wheel base, 1 % slip), 0 = perfect odometry, 3 = three times as bad.
+        announce_spawn: publish the robot's start pose on ``initialpose`` when sim time starts (the operator's
+            act of placing the robot; SLAM starts from it).
+        spawn_sigma: (σ_xy m, σ_yaw rad) of that announcement's covariance.
     """
 
     world: str = "rooms"
@@ -101,8 +111,12 @@ class SimConfig:
     lockstep_timeout_s: float = 10.0
     publish_ground_truth: bool = True
     odom_noise_scale: float = 1.0
+    announce_spawn: bool = True
+    spawn_sigma: tuple[float, float] = (0.05, 0.05)
 
     def __post_init__(self) -> None:
+        if not all(v >= 0.0 for v in self.spawn_sigma):
+            raise ValueError(f"spawn_sigma must be >= 0 (m, rad), got {list(self.spawn_sigma)}")
         if not self.rtf >= 0.0:
             raise ValueError(f"rtf must be >= 0 (0 = as fast as possible), got {self.rtf}")
         if not 0.0 <= self.odom_noise_scale <= 20.0:
@@ -199,6 +213,7 @@ class SimBridge:
             for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "truth", "sim_status")
         }
         self._ground_truth = bus.publisher("ground_truth") if config.publish_ground_truth else None
+        self._spawn = bus.publisher("initialpose") if config.announce_spawn else None
         # Only worlds with moving bodies (the warehouse's carts) declare the topic.
         self._obstacles = bus.publisher("obstacles") if sim.moving_body_names else None
         self._obstacles_due = _Every(config.obstacles_rate_hz)
@@ -284,6 +299,11 @@ class SimBridge:
         sim = self.sim
         clock_due = self._clock.due(t)
         self.apply_command(t)
+        if self._spawn is not None:  # the first call: sim time starts with the robot at its spawn pose
+            sxy, syaw = self.config.spawn_sigma
+            cov = np.diag([sxy**2, sxy**2, syaw**2])
+            self._spawn.put(ros.pose_with_covariance_stamped(t, "map", sim.start_pose, cov))
+            self._spawn = None
         if self._odom.due(t):
             est = sim.odometry()
             stamp = est.stamp_s
@@ -345,6 +365,22 @@ class SimBridge:
             self._bus.sim_time = t
 
 
+def publish_robot_facts(bus: Bus, description: RobotDescription) -> tuple[Publisher, Publisher]:
+    """Latch the robot's description and ``base_link`` → each of its sensor frames on ``tf_static``.
+
+    Returns:
+        The two publishers: keep them as long as the sim runs (they answer late joiners).
+    """
+    text = msg_class("std_msgs/msg/String")(data=description.mjcf)
+    frames = [
+        ros.transform_stamped_3d(0.0, description.base_frame, f.name, f.xyz_m, f.quat_xyzw) for f in description.frames
+    ]
+    pubs = bus.publisher("robot_description"), bus.publisher("tf_static")
+    pubs[0].put(text)
+    pubs[1].put(ros.tf_message(*frames))
+    return pubs
+
+
 class SimService(Service[SimConfig]):
     """Runs the simulator at ``rtf`` × wall time and bridges it to the bus.
 
@@ -394,6 +430,7 @@ class SimService(Service[SimConfig]):
             slip_noise_std=k * base.slip_noise_std,
         )
         self.sim = Simulator(cfg.world, seed=cfg.seed, odometry=odometry, watchdog_timeout_s=cfg.watchdog_timeout_s)
+        self.robot_facts = publish_robot_facts(self.bus, self.sim.description)
         self.bridge = bridge = SimBridge(self.sim, self.bus, cfg)
         self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
         bridge.attach(self.runner)
@@ -500,6 +537,15 @@ class SimService(Service[SimConfig]):
             self.bridge.advance(target, deadline)
         else:
             self.bridge.advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
+
+    def starved(self) -> str:
+        barrier = self.barrier
+        missing = [] if barrier is None else barrier.missing()
+        if not missing:
+            return ""
+        if not self._time_started:
+            return f"lockstep participants {', '.join(missing)} (sim time starts when they are present)"
+        return f"lockstep participants {', '.join(missing)} (sim time at most real time until they are back)"
 
     def deactivate(self) -> None:
         self.sim.set_command(0.0, 0.0)

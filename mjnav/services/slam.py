@@ -7,11 +7,12 @@ Localization mode (``mode = "localization"``) tracks the pose on a saved ROS map
 :class:`mjnav.estimation.slam.Localizer` by scan-to-map matching from ``initialpose``.
 
 Both modes start from ``initialpose`` (``geometry_msgs/PoseWithCovarianceStamped`` in ``map``, what RViz's 2D Pose
-Estimate sends; ``mjnav demo`` sends the robot's start pose, as an operator would) or from ``initial_pose`` when
-configured; until then nothing is published and the robot does not move. Every step publishes ``pose`` — the
-newest ``map → odom`` composed with the newest odometry, so the estimate follows the wheels between scans — and
-``map → odom`` on ``tf``; ``map`` goes out at ``map_rate_hz``, ``base_link → laser`` and ``base_link → imu`` on
-``tf_static`` every second (for late joiners: Zenoh keeps no latched messages).
+Estimate sends; the sim announces the robot's spawn pose there when sim time starts) or from ``initial_pose`` when
+configured; until then nothing is published, the robot does not move, and the status says what SLAM waits for.
+Every step publishes ``pose`` — the newest ``map → odom`` composed with the newest odometry, so the estimate
+follows the wheels between scans — and ``map → odom`` on ``tf``; ``map`` goes out at ``map_rate_hz`` (latched).
+Where the lidar sits on the robot comes from the robot description the sim latches (:mod:`mjnav.runtime.robot`):
+each scan is placed at the frame its header names.
 
 In mapping mode the SLAM state is checkpointed in the run's state directory every ``checkpoint_period_s``, so a
 restarted slam service resumes the same map and pose graph. The checkpoint grows by what is new
@@ -36,7 +37,12 @@ from mjnav.geometry import Pose2D, PoseHistory
 from mjnav.mapping import OccupancyGrid, read_ros_map
 from mjnav.motion.gyrodometry import GyroOdometry
 from mjnav.msgs import msg_class, ros
+from mjnav.robot import DescriptionError
 from mjnav.runtime import Service
+from mjnav.runtime.robot import RobotModel
+
+#: Sim seconds without a scan used after which the status says SLAM lacks scans.
+STARVED_AFTER_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -49,8 +55,6 @@ class SlamServiceConfig:
         map_file: ROS map YAML for localization mode.
         initial_pose: (x, y, yaw) to start from without waiting for ``initialpose``; empty = wait for it.
         initial_sigma: (σ_xy m, σ_yaw rad) assumed with ``initial_pose``.
-        laser_offset_m: lidar position in ``base_link`` (x, y, z), metres.
-        imu_offset_m: IMU position in ``base_link`` (x, y, z), metres (for ``tf_static``).
         max_range_m: beams at or beyond this are "no return" for mapping, metres.
         resolution_m: map cell size, metres.
         map_rate_hz: ``map`` publications per sim second (rendering it costs more than a scan).
@@ -71,8 +75,6 @@ class SlamServiceConfig:
     map_file: str = ""
     initial_pose: tuple[float, ...] = ()
     initial_sigma: tuple[float, float] = (0.05, 0.05)
-    laser_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.2)
-    imu_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.1)
     max_range_m: float = 12.0
     resolution_m: float = 0.05
     map_rate_hz: float = 1.0
@@ -110,9 +112,9 @@ class SlamService(Service[SlamServiceConfig]):
         self.gyro_odom = GyroOdometry()
         self.scan = self.bus.subscribe("scan")
         self.initial = self.bus.subscribe("initialpose")
+        self.robot = RobotModel(self.bus)
         self.pose_pub = self.bus.publisher("pose")
         self.tf_pub = self.bus.publisher("tf")
-        self.tf_static_pub = self.bus.publisher("tf_static")
         self.map_pub = self.bus.publisher("map")
         self.bus.serve("slam_info", self._on_info)
         self.slam: GraphSlam | None = None
@@ -120,8 +122,9 @@ class SlamService(Service[SlamServiceConfig]):
         self.static_map: OccupancyGrid | None = None
         if cfg.mode == "localization":
             self.static_map = OccupancyGrid.from_ros_map(read_ros_map(cfg.map_file))
-            self.localizer = Localizer(self.static_map, LocalizerConfig())
+        self.laser: tuple[str, tuple[float, float, float]] | None = None  # (frame, its x, y, yaw in base_link)
         self.scans = 0
+        self.last_scan_used = -math.inf  # sim time of the newest scan SLAM used
         self.failures = 0
         self.map_to_odom: np.ndarray | None = None  # (x, y, θ) once the estimate started
         self.start: tuple[np.ndarray, np.ndarray, Pose2D | None] | None = None  # (map pose, cov, odom then)
@@ -130,8 +133,34 @@ class SlamService(Service[SlamServiceConfig]):
         if self.start is None and self.map_to_odom is None and cfg.initial_pose:
             sx, syaw = cfg.initial_sigma
             self.start = (np.asarray(cfg.initial_pose, dtype=float), np.diag([sx**2, sx**2, syaw**2]), None)
-            if self.localizer is not None:
-                self.localizer.set_pose(self.start[0], _positive(self.start[1]))  # odometry: the next update's
+
+    def starting(self) -> str:
+        return self.robot.waiting()
+
+    def starved(self) -> str:
+        if self.slam is None and self.map_to_odom is None and self.start is None:
+            return f"initialpose on {self.initial.key} (where the robot is: the sim announces its spawn pose)"
+        if self.odom.latest() is None:
+            return f"odometry on {self.bus.key('odom')}"
+        if self.now - self.last_scan_used > STARVED_AFTER_S:
+            return f"scans on {self.scan.key} (none used for {STARVED_AFTER_S:g} s)"
+        return ""
+
+    def _lidar_pose(self, frame: str) -> tuple[float, float, float] | None:
+        """(x, y, yaw) in base_link of the scan frame ``frame``, from the robot description (None: unknown
+        frame, logged once per frame)."""
+        if self.laser is not None and self.laser[0] == frame:
+            return self.laser[1]
+        robot = self.robot.current
+        assert robot is not None  # starting() waited for it
+        try:
+            pose = robot.frame(frame).planar
+        except DescriptionError as exc:
+            self.log.warning("scan in frame %r not used: %s", frame, exc)
+            self.laser = (frame, (math.nan, math.nan, math.nan))
+            return None
+        self.laser = (frame, pose)
+        return pose
 
     def activate(self) -> None:
         # Called again when the sim clock goes back (the simulator restarted): its odometry starts again from zero
@@ -144,8 +173,9 @@ class SlamService(Service[SlamServiceConfig]):
         self.pending.clear()
         self.pending_gyro.clear()
         self.next_map = 0.0
-        self.next_static = 0.0
         self.next_checkpoint = 0.0  # the first checkpoint as soon as mapping started
+        self.now = 0.0
+        self.last_scan_used = -math.inf
 
     def _on_odom(self, msg: Any) -> None:
         self.pending.append((ros.seconds(msg.header.stamp), ros.pose_of(msg)))
@@ -165,15 +195,15 @@ class SlamService(Service[SlamServiceConfig]):
     # ------------------------------------------------------------------------------------------------ loop
 
     def step(self, now: float) -> None:
+        self.now = now
+        if self.last_scan_used == -math.inf:
+            self.last_scan_used = now  # starvation counts from the first step
         self._take_odometry()
         for msg in self.initial.drain():
             self._set_initial(msg)
         scan = self.scan.take()
         if scan is not None:
             self._process(scan)
-        if now >= self.next_static:
-            self.next_static = now + 1.0
-            self._publish_static(now)
         if self.map_to_odom is None:
             return
         odom = self.odom.latest()
@@ -194,21 +224,46 @@ class SlamService(Service[SlamServiceConfig]):
             return
         pose = ros.pose_of(msg)
         cov = ros.planar_covariance(msg)
+        # The odometry when the pose was given (its stamp), if still in the history; else the newest.
+        then = self.fused.at(ros.seconds(msg.header.stamp))
         latest = self.fused.latest()
-        self.start = (np.array([pose.x, pose.y, pose.theta]), cov, None if latest is None else latest[1])
-        if self.localizer is not None:
-            odom = None if latest is None else (latest[1].x, latest[1].y, latest[1].theta)
-            self.localizer.set_pose(self.start[0], _positive(cov), odom)
+        odom_then = then if then is not None else (None if latest is None else latest[1])
+        self.start = (np.array([pose.x, pose.y, pose.theta]), cov, odom_then)
+        if self.config.mode == "localization":
+            self._localizer().set_pose(
+                self.start[0],
+                _positive(cov),
+                None if odom_then is None else (odom_then.x, odom_then.y, odom_then.theta),
+            )
         elif self.slam is not None:
             self.log.info("initialpose ignored: mapping already started (restart slam to map afresh)")
             return
         self.log.info("initial pose (%.2f, %.2f, %.1f°)", pose.x, pose.y, math.degrees(pose.theta))
+
+    def _localizer(self) -> Localizer:
+        """The localizer (localization mode), made on first use with the lidar's pose on the robot."""
+        if self.localizer is None:
+            assert self.static_map is not None
+            laser = self._lidar_pose(self._lidar_frame())
+            config = LocalizerConfig() if laser is None else LocalizerConfig(laser_offset=laser)
+            self.localizer = Localizer(self.static_map, config)
+            if self.start is not None and self.start[2] is None:  # initial_pose from the config
+                self.localizer.set_pose(self.start[0], _positive(self.start[1]))  # odometry: the next update's
+        return self.localizer
+
+    def _lidar_frame(self) -> str:
+        robot = self.robot.current
+        assert robot is not None
+        return robot.lidar_frame or ""
 
     def _process(self, scan: Any) -> None:
         stamp = ros.seconds(scan.header.stamp)
         odom, raw = self.fused.at(stamp), self.odom.at(stamp)
         if odom is None or raw is None or (self.start is None and self.slam is None):
             return  # no odometry at the scan's time yet, or not started (waiting for initialpose)
+        laser = self._lidar_pose(scan.header.frame_id)
+        if laser is None:
+            return
         n = len(scan.ranges)
         angles = scan.angle_min + scan.angle_increment * np.arange(n)
         ranges = np.asarray(scan.ranges, dtype=np.float64)
@@ -216,17 +271,18 @@ class SlamService(Service[SlamServiceConfig]):
         # The estimator runs on the gyro-aided odometry (odom_xyt); map → odom is published for the wheels' (raw).
         odom_xyt, raw_xyt = (odom.x, odom.y, odom.theta), (raw.x, raw.y, raw.theta)
         try:
-            if self.localizer is not None:
-                if not self.localizer.initialised:
+            if self.config.mode == "localization":
+                localizer = self._localizer()
+                if not localizer.initialised:
                     return
                 if self.reanchor and self.map_to_odom is not None:
                     pose = compose(self.map_to_odom, raw_xyt)
-                    self.localizer.set_pose(pose, _positive(self._covariance()), odom_xyt)
+                    localizer.set_pose(pose, _positive(self._covariance()), odom_xyt)
                 self.reanchor = False
-                est = self.localizer.update(odom_xyt, ranges, angles, **kwargs)
+                est = localizer.update(odom_xyt, ranges, angles, **kwargs)
             else:
                 if self.slam is None:
-                    self.slam = self._new_slam(odom)
+                    self.slam = self._new_slam(odom, laser)
                 elif self.reanchor and self.map_to_odom is not None:
                     self.slam.reanchor(odom_xyt, compose(self.map_to_odom, raw_xyt))
                     self.log.info(
@@ -240,10 +296,11 @@ class SlamService(Service[SlamServiceConfig]):
                 self.log.warning("scan at %.3f s not used (%d so far): %s", stamp, self.failures, exc)
             return
         self.scans += 1
+        self.last_scan_used = self.now
         self.map_to_odom = np.asarray(compose(compose(est.map_to_odom, odom_xyt), invert(raw_xyt)), dtype=float)
         self.covariance = np.asarray(est.covariance, dtype=float)
 
-    def _new_slam(self, odom: Pose2D) -> GraphSlam:
+    def _new_slam(self, odom: Pose2D, laser: tuple[float, float, float]) -> GraphSlam:
         assert self.start is not None
         cfg = self.config
         start, _cov, odom_then = self.start
@@ -252,7 +309,7 @@ class SlamService(Service[SlamServiceConfig]):
         slam_cfg = SlamConfig(
             map_resolution_m=cfg.resolution_m,
             max_range_m=cfg.max_range_m,
-            laser_offset=(cfg.laser_offset_m[0], cfg.laser_offset_m[1], 0.0),
+            laser_offset=laser,
             loop_candidates=SlamConfig().loop_candidates if cfg.loop_closure else 0,
             loop_window_m=cfg.loop_window_m,
             loop_window_rad=cfg.loop_window_rad,
@@ -272,16 +329,6 @@ class SlamService(Service[SlamServiceConfig]):
             return
         origin = (grid.origin_m[0], grid.origin_m[1])
         self.map_pub.put(ros.occupancy_grid(now, "map", grid.to_ros(), grid.resolution_m, origin))
-
-    def _publish_static(self, now: float) -> None:
-        cfg = self.config
-        identity = (0.0, 0.0, 0.0, 1.0)
-        self.tf_static_pub.put(
-            ros.tf_message(
-                ros.transform_stamped_3d(now, "base_link", "laser", cfg.laser_offset_m, identity),
-                ros.transform_stamped_3d(now, "base_link", "imu", cfg.imu_offset_m, identity),
-            )
-        )
 
     def _on_info(self, _request: Any) -> Any:
         slam = self.slam

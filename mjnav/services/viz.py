@@ -12,7 +12,6 @@ self-contained HTML snapshot when the service stops (and every ``static_html_per
 
 from __future__ import annotations
 
-import json
 import os
 import time
 import webbrowser
@@ -20,9 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from mjnav.bus import NoReply, RemoteError
-from mjnav.msgs import endpoint
 from mjnav.runtime import Service
+from mjnav.viz.simworld import SimWorld
 from mjnav.viz.view import POSE_TOPICS
 
 #: Per-topic draw failures logged in full before they are only counted.
@@ -117,7 +115,7 @@ class VizService(Service[VizConfig]):
         # when it draws.
         self.snapshot_subs = {name: self.bus.subscribe(name, lossy=True) for name in snapshots}
         self.event_subs = {name: self.bus.subscribe(name, lossy=True) for name in ("goal", "goal_status")}
-        self.sim_status = self.bus.subscribe("sim_status", lossy=True)
+        self.sim_world = SimWorld(self.bus, "sim", _resolves, cfg.world_timeout_s)
         self.world_name = ""
         self._failures: dict[str, int] = {}
 
@@ -130,11 +128,7 @@ class VizService(Service[VizConfig]):
         if cfg.world:
             self._load_world(cfg.world)
         else:
-            self.log.info(
-                "waiting for the sim's world (%s or %s)",
-                self.bus.key("sim_status"),
-                endpoint("config").key(self.bus.namespace, "sim"),
-            )
+            self.log.info("waiting for the sim's world (%s)", self.sim_world.where)
         if cfg.open_browser and self.server is not None and _can_open_browser():
             webbrowser.open(self.server.web_url, new=2)
 
@@ -172,42 +166,18 @@ class VizService(Service[VizConfig]):
     # --------------------------------------------------------------------------------------------------- world
 
     def _resolve_world(self) -> bool:
-        """Find the sim's world: its ``sim_status`` (also in bags), else its config; after ``world_timeout_s`` settle
-        for the robot alone."""
-        world = self._world_from_sim_status() or self._world_from_sim_config()
-        if world:
-            self._load_world(world)
-            return True
-        if time.monotonic() - self._started < self.config.world_timeout_s:
+        """Find the sim's world; after ``world_timeout_s`` settle for the robot alone."""
+        world = self.sim_world.find()
+        if world is None:
             return False
-        self.log.warning(
-            "no world from the sim within %.1f s (%s, %s); drawing the robot without a world",
-            self.config.world_timeout_s,
-            self.bus.key("sim_status"),
-            endpoint("config").key(self.bus.namespace, "sim"),
-        )
-        self._load_world("")
+        if not world:
+            self.log.warning(
+                "no world from the sim within %.1f s (%s); drawing the robot without a world",
+                self.config.world_timeout_s,
+                self.sim_world.where,
+            )
+        self._load_world(world)
         return True
-
-    def _world_from_sim_status(self) -> str | None:
-        from mjnav.sim import UnknownWorldError, resolve_world
-
-        msg = self.sim_status.latest()
-        if msg is None or not msg.world:
-            return None
-        try:
-            resolve_world(msg.world)
-        except UnknownWorldError:
-            return None  # a scene file elsewhere: only its name is in sim_status; the config has the path
-        return str(msg.world)
-
-    def _world_from_sim_config(self) -> str | None:
-        try:
-            reply = self.bus.call("config", service="sim", timeout_s=0.5)
-            world = json.loads(reply.data).get("world")
-        except (NoReply, RemoteError, ValueError):
-            return None
-        return world if isinstance(world, str) and world else None
 
     def _load_world(self, world: str) -> None:
         from mjnav.sim import SimError
@@ -258,3 +228,14 @@ def _can_open_browser() -> bool:
     if os.environ.get("MJNAV_HEADLESS", "") not in ("", "0"):
         return False
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _resolves(world: str) -> bool:
+    """Whether ``world`` names a ground world here (a bundled name or an existing file)."""
+    from mjnav.sim import UnknownWorldError, resolve_world
+
+    try:
+        resolve_world(world)
+    except UnknownWorldError:
+        return False
+    return True

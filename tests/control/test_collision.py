@@ -122,7 +122,7 @@ def test_params_are_checked() -> None:
     with pytest.raises(ValueError):
         CollisionCheckParams(robot_radius_m=0.0)
     with pytest.raises(ValueError):
-        CollisionCheckParams(static_horizon_s=2.0, moving_horizon_s=1.0)
+        CollisionCheckParams(robot_radius_m=0.2, static_horizon_s=2.0, moving_horizon_s=1.0)
 
 
 def test_free_space_violations_tell_an_approaching_face_from_a_revealed_wall() -> None:

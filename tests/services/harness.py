@@ -1,5 +1,6 @@
 """Service logic without processes: one service on a real in-process Zenoh bus, stepped by the test at chosen sim
-times, its inputs published and its outputs recorded by a second peer."""
+times, its inputs published and its outputs recorded by a second peer (which also latches the robot description,
+as the sim does)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,12 @@ from collections.abc import Callable
 from typing import Any
 
 from mjnav.bus import Bus, Publisher, Subscription, wait_until
+from mjnav.msgs import msg_class
 from mjnav.runtime import Service, build_config
+from tests.conftest import REPO
+
+#: The bundled robot's MJCF: what the harness latches on ``robot_description`` unless told otherwise.
+DIFFBOT = (REPO / "mjcf" / "diffbot.xml").read_text(encoding="utf-8")
 
 
 class Harness:
@@ -18,6 +24,8 @@ class Harness:
         service_cls: the service class.
         peer: the ``peer`` fixture (opens buses on the test router).
         outputs: topics whose messages are recorded, in arrival order, in :attr:`received`.
+        robot: the robot description (MJCF) latched on ``robot_description`` before the service starts (None:
+            none); the service is ready (:meth:`Service.starting` empty) when the harness returns.
         config: config values over the class defaults.
     """
 
@@ -26,17 +34,23 @@ class Harness:
         service_cls: type[Service[Any]],
         peer: Callable[..., Bus],
         outputs: tuple[str, ...],
+        robot: str | None = DIFFBOT,
         **config: Any,
     ) -> None:
         self.world = peer()
         self.received: dict[str, list[Any]] = {name: [] for name in outputs}
         for name in outputs:
             self.world.subscribe(name, callback=self.received[name].append)
+        self._pubs: dict[str, Publisher] = {}
+        if robot is not None:
+            self._pubs["robot_description"] = pub = self.world.publisher("robot_description")
+            pub.put(msg_class("std_msgs/msg/String")(data=robot))
         cfg = build_config(service_cls.config_class, config, f"{service_cls.name} test config")
         self.service = service_cls(cfg, peer(), logging.getLogger(f"test.{service_cls.name}"))
         self.service.configure()
         self.service.activate()
-        self._pubs: dict[str, Publisher] = {}
+        if robot is not None:
+            assert wait_until(lambda: not self.service.starting(), 10.0), self.service.starting()
 
     def _subscription(self, name: str) -> Subscription:
         """The service's subscription to ``name`` (found among its bus's declarations)."""
@@ -65,6 +79,11 @@ class Harness:
                 wait_until(lambda n=echoed: len(self.received[name]) > n, 2.0)
                 del self.received[name][echoed:]
         raise AssertionError(f"{name} did not arrive")
+
+    def close(self) -> None:
+        """Close both buses (what the harness latched is gone with them)."""
+        self.service.bus.close()
+        self.world.close()
 
     def step(self, t: float, expect: dict[str, int] | None = None) -> None:
         """Step the service at sim time ``t``; with ``expect``, wait until each named output has that many

@@ -22,7 +22,6 @@ from mjnav.msgs import from_dict, msg_class, ros
 from mjnav.msgs.topics import OPERATOR
 from mjnav.runtime.mission import MissionClient
 from mjnav.runtime.stack import load_stack, services_dir
-from mjnav.sim.worlds import world_info
 from tests.services.test_navigation import RTF, SERVICES, up_process
 
 #: Settings that make every service declare everything it can (the warehouse has moving obstacles) and start no
@@ -61,17 +60,18 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 class _Intruder:
-    """A client with a valid certificate outside the rules. Each goal status it sees is answered with a forged
-    REACHED for the same goal, a lethal costmap, a clock at 2³¹−1 s and a full-speed spin command."""
+    """A client with a valid certificate outside the rules. Each goal status it sees (on ``listen``) is answered
+    (on ``send``: a latched key must not be published from a callback of its own subscription in one session) with
+    a forged REACHED for the same goal, a lethal costmap, a clock at 2³¹−1 s and a full-speed spin command."""
 
-    def __init__(self, bus: Bus) -> None:
+    def __init__(self, listen: Bus, send: Bus) -> None:
         self.sent = 0
-        self._pubs = {name: bus.publisher(name) for name in ("goal_status", "costmap", "clock", "cmd_vel")}
+        self._pubs = {name: send.publisher(name) for name in ("goal_status", "costmap", "clock", "cmd_vel")}
         grid = {"info": {"resolution": 0.05, "width": 400, "height": 400, "origin": {"orientation": {"w": 1.0}}}}
         grid["info"]["origin"]["position"] = {"x": -10.0, "y": -10.0}
         self._costmap = from_dict("nav_msgs/msg/OccupancyGrid", {**grid, "data": [100] * 160_000})
         self._lock = threading.Lock()
-        bus.subscribe("goal_status", callback=self._on_status)
+        listen.subscribe("goal_status", callback=self._on_status)
 
     def _on_status(self, status: Any) -> None:
         if status.state in (STATUS.STATE_REACHED, STATUS.STATE_FAILED, STATUS.STATE_CANCELED):
@@ -92,15 +92,14 @@ def test_the_stack_runs_under_secure_and_an_outsider_cannot_end_the_goal_or_move
     with up_process("--secure", str(certs), "--set", f"sim.rtf={RTF}") as (port, proc, lines):
         endpoint = f"tls/127.0.0.1:{port}"
         operator = Bus.open(BusConfig(mode="client", connect=(endpoint,), listen=(), **tls_files(certs, OPERATOR)))
-        intruder_bus = Bus.open(
-            BusConfig(mode="client", connect=(endpoint,), listen=(), **tls_files(certs, "intruder"))
-        )
+        intruder_config = BusConfig(mode="client", connect=(endpoint,), listen=(), **tls_files(certs, "intruder"))
+        intruder_bus, intruder_out = Bus.open(intruder_config), Bus.open(intruder_config)
         try:
-            client = MissionClient(operator, name=OPERATOR, initial_pose=world_info("rooms").start)
+            client = MissionClient(operator, name=OPERATOR)  # the sim announces the robot's start
             assert wait_until(lambda: set(SERVICES) <= set(operator.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
             assert client.truth.wait(60.0) is not None
             mapper_status = operator.subscribe("status", service="mapper")
-            intruder = _Intruder(intruder_bus)
+            intruder = _Intruder(intruder_bus, intruder_out)
             outcome = client.run_goal(*goal, timeout_s=200.0, wall_timeout_s=300.0)
             assert intruder.sent > 0, "the intruder never saw a goal status: the test proved nothing"
             assert outcome.result == "reached", outcome
@@ -115,6 +114,7 @@ def test_the_stack_runs_under_secure_and_an_outsider_cannot_end_the_goal_or_move
             assert mapper_status.wait(10.0, lambda s: s.steps > first.steps) is not None
             assert proc.poll() is None
         finally:
+            intruder_out.close()
             intruder_bus.close()
             operator.close()
     text = "".join(lines)

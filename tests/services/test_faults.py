@@ -25,7 +25,6 @@ from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import msg_class
 from mjnav.msgs.ros import seconds as ros_seconds
 from mjnav.runtime.mission import GoalOutcome, MissionClient
-from mjnav.sim.worlds import world_info
 from tests.conftest import REPO, free_port
 from tests.services.test_navigation import SERVICES, up_process
 
@@ -42,7 +41,7 @@ def stack(*extra: str) -> Iterator[tuple[Bus, MissionClient, list[str]]]:
     with up_process(*args) as (port, _proc, lines):
         bus = Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",)))
         try:
-            client = MissionClient(bus, initial_pose=world_info("rooms").start)
+            client = MissionClient(bus)  # the sim announces the robot's start
             assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
             yield bus, client, lines
         finally:

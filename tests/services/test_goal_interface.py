@@ -19,6 +19,7 @@ from mjnav.services.planner import PlannerService
 from tests.services.harness import Harness
 
 STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
+FEEDBACK = msg_class("mjnav_msgs/msg/ControllerFeedback")
 REQUEST = msg_class("mjnav_msgs/msg/NavigateRequest")
 RES = 0.1  # costmap resolution, metres; origin (0, 0); 40 x 40 cells
 Peer = Callable[..., Bus]
@@ -40,7 +41,6 @@ def _planner(peer: Peer) -> Harness:
         ("goal_status", "plan"),
         pose_source="ground_truth",
         replan_period_s=2.0,
-        heartbeat_period_s=100.0,
     )
     cells = np.zeros((40, 40), dtype=np.int8)
     cells[:30, 20:22] = 100
@@ -188,9 +188,14 @@ def _at(h: Harness, t: float, pose: Pose2D, expect: dict[str, int]) -> object:
     return h.received["cmd_vel"][-1]
 
 
+def _arrivals(h: Harness) -> list[int]:
+    """Goal ids of the controller's arrival reports so far."""
+    return [f.goal_id for f in h.received["controller_feedback"] if f.state == FEEDBACK.STATE_ARRIVED]
+
+
 def test_the_controller_turns_in_place_to_the_goal_yaw_then_reports_reached(peer: Peer) -> None:
-    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), pose_source="ground_truth", goal_tolerance_m=0.1,
-                yaw_goal_tolerance_rad=0.05)  # fmt: skip
+    h = Harness(ControllerService, peer, ("cmd_vel", "controller_feedback"), pose_source="ground_truth",
+                goal_tolerance_m=0.1, yaw_goal_tolerance_rad=0.05)  # fmt: skip
     line = np.c_[np.linspace(0.0, 2.0, 21), np.zeros(21)]
     goal = ros.pose_stamped(0.0, "map", Pose2D(2.0, 0.0, math.radians(120.0)))
     h.send("goal_status", _following(1.0, 1, goal))
@@ -204,11 +209,11 @@ def test_the_controller_turns_in_place_to_the_goal_yaw_then_reports_reached(peer
     assert cmd.linear.x == 0.0 and cmd.angular.z == pytest.approx(1.5 * math.radians(10.0), rel=1e-6)
     cmd = _at(h, 1.3, Pose2D(1.88, 0.03, math.radians(115.0)), {"cmd_vel": 4})
     assert cmd.angular.z == pytest.approx(0.2)  # rotate_min_radps near the end
-    assert not any(s.state == STATUS.STATE_REACHED for s in h.received["goal_status"])
-    # Within 0.05 rad (2.9°) of 120°: stop, reached.
-    cmd = _at(h, 1.4, Pose2D(1.88, 0.03, math.radians(122.0)), {"cmd_vel": 5, "goal_status": 2})
+    assert not _arrivals(h)
+    # Within 0.05 rad (2.9°) of 120°: stop, arrived (the planner reports it reached).
+    cmd = _at(h, 1.4, Pose2D(1.88, 0.03, math.radians(122.0)), {"cmd_vel": 5})
     assert (cmd.linear.x, cmd.angular.z) == (0.0, 0.0)
-    assert (h.received["goal_status"][-1].goal_id, h.received["goal_status"][-1].state) == (1, STATUS.STATE_REACHED)
+    assert wait_until(lambda: _arrivals(h) == [1], 10.0)
     # Across ±180°: goal yaw 170°, heading -170° → turn right by 20°, not left by 340°.
     assert goal_yaw_error(ros.pose_msg(Pose2D(0, 0, math.radians(170.0))), math.radians(-170.0)) == pytest.approx(
         math.radians(-20.0)
@@ -216,12 +221,12 @@ def test_the_controller_turns_in_place_to_the_goal_yaw_then_reports_reached(peer
 
 
 def test_a_goal_without_orientation_is_reached_with_any_heading(peer: Peer) -> None:
-    h = Harness(ControllerService, peer, ("cmd_vel", "goal_status"), pose_source="ground_truth")
+    h = Harness(ControllerService, peer, ("cmd_vel", "controller_feedback"), pose_source="ground_truth")
     line = np.c_[np.linspace(0.0, 2.0, 21), np.zeros(21)]
     goal = from_dict("geometry_msgs/msg/PoseStamped", {"header": {"frame_id": "map"},
                      "pose": {"position": {"x": 2.0}, "orientation": {"w": 0.0}}})  # fmt: skip
     h.send("goal_status", _following(1.0, 1, goal))
     h.send("path", ros.path_msg(1.0, "map", line))
-    cmd = _at(h, 1.0, Pose2D(1.95, 0.0, 2.5), {"cmd_vel": 1, "goal_status": 2})
+    cmd = _at(h, 1.0, Pose2D(1.95, 0.0, 2.5), {"cmd_vel": 1})
     assert (cmd.linear.x, cmd.angular.z) == (0.0, 0.0)
-    assert h.received["goal_status"][-1].state == STATUS.STATE_REACHED
+    assert wait_until(lambda: _arrivals(h) == [1], 10.0)

@@ -74,17 +74,15 @@ def up_process(*args: str) -> Iterator[tuple[int, subprocess.Popen[str], list[st
 def running_stack(
     *sets: str, initial_pose: Pose2D | None = None, initial_sigma: tuple[float, float] = (0.05, 0.05)
 ) -> Iterator[tuple[Bus, MissionClient, subprocess.Popen[str], list[str]]]:
-    """`mjnav up` with the shipped stack; yields a bus on its router, a mission client (sending ``initialpose``:
-    by default the world's start), the process, its output."""
+    """`mjnav up` with the shipped stack; yields a bus on its router, a mission client (sending ``initialpose`` when
+    given one: the sim announces the world's start itself), the process, its output."""
     args = ["--set", f"sim.rtf={RTF}"]
     for item in sets:
         args += ["--set", item]
-    world = next((item.split("=", 1)[1] for item in sets if item.startswith("sim.world=")), "rooms")
     with up_process(*args) as (port, proc, lines):
         bus = Bus.open(BusConfig(connect=(f"tcp/127.0.0.1:{port}",)))
         try:
-            start = world_info(world).start if initial_pose is None else initial_pose
-            client = MissionClient(bus, initial_pose=start, initial_sigma=initial_sigma)  # where SLAM starts
+            client = MissionClient(bus, initial_pose=initial_pose, initial_sigma=initial_sigma)
             assert wait_until(lambda: SERVICES <= set(bus.alive_services(0.5)), 180.0), "".join(lines)[-3000:]
             assert client.truth.wait(60.0) is not None
             yield bus, client, proc, lines
@@ -170,6 +168,7 @@ def test_localization_on_a_saved_map_converges_from_a_wrong_initial_pose(tmp_pat
         f"slam.map_file={json.dumps(str(prior))}",
         f"mapper.prior_map={json.dumps(str(prior))}",
         "sim.publish_ground_truth=false",
+        "sim.announce_spawn=false",  # the operator, not the sim, tells SLAM where the robot is: wrongly
         f"slam.initial_pose={json.dumps([wrong.x, wrong.y, wrong.theta])}",  # not the world's start either
         f"slam.initial_sigma={json.dumps([0.5, math.radians(15.0)])}",
     )
@@ -262,11 +261,11 @@ def _nan_laden(msgtype: str, rng: np.random.Generator) -> object:
 # Keys each service subscribes to (every service on sim time also subscribes to clock).
 SUBSCRIBED = {
     "sim": ["cmd_vel"],
-    "slam": ["clock", "odom", "scan", "initialpose"],
-    "mapper": ["clock", "scan", "tf"],
-    "planner": ["clock", "goal", "cancel", "costmap", "goal_status", "tf"],
+    "slam": ["clock", "odom", "scan", "initialpose", "robot_description"],
+    "mapper": ["clock", "scan", "tf", "robot_description"],
+    "planner": ["clock", "goal", "cancel", "costmap", "controller_feedback", "tf"],
     "smoother": ["clock", "plan", "costmap"],
-    "controller": ["clock", "path", "tf", "scan", "goal_status", "map"],
+    "controller": ["clock", "path", "tf", "scan", "goal_status", "map", "robot_description"],
     "viz": ["truth", "scan", "map", "plan", "path", "costmap", "goal", "goal_status", "sim_status"],
 }
 FUZZ_PER_KEY = 1000

@@ -16,6 +16,7 @@ import pytest
 
 from mjnav.bus import Bus
 from mjnav.msgs import ros
+from mjnav.robot import parse_robot_description
 from tests.conftest import REPO
 
 
@@ -34,6 +35,8 @@ def sim_process(router_endpoint: str) -> Iterator[subprocess.Popen[str]]:
             "world=empty",
             "--set",
             "rtf=1.0",
+            "--set",
+            "lockstep_participants=[]",  # alone: sim time starts at once (sim.toml waits for the stack)
         ],
         cwd=REPO,
         text=True,
@@ -67,6 +70,14 @@ def test_sim_publishes_sensors_and_obeys_cmd_vel_with_a_watchdog(
     for name, sub in subs.items():
         assert sub.wait(10.0) is not None, f"no {name}"
     assert subs["tf"].latest().transforms[0].child_frame_id == "base_link"
+    # The robot's facts, latched: a subscriber that joins now, long after they went out, gets them at once.
+    late = peer()
+    description = late.subscribe("robot_description").wait(10.0)
+    assert description is not None and parse_robot_description(description.data).radius_m == pytest.approx(0.19)
+    statics = late.subscribe("tf_static").wait(10.0)
+    assert statics is not None
+    frames = {t.child_frame_id: (t.header.frame_id, t.transform.translation.z) for t in statics.transforms}
+    assert frames == {"laser": ("base_link", 0.2), "imu": ("base_link", 0.1)}  # the model's sites
 
     start = truth.wait(10.0)
     x0 = start.pose.position.x
@@ -150,7 +161,7 @@ def test_the_sim_service_records_while_it_runs(router_endpoint: str, peer: Calla
     except RenderBackendUnavailableError as exc:
         pytest.skip(f"no offscreen OpenGL here: {exc}")
     out = tmp_path / "sim.mp4"
-    sets = ["world=warehouse", "rtf=0", f"record_path={str(out)!r}", "record_fps=10.0"]
+    sets = ["world=warehouse", "rtf=0", f"record_path={str(out)!r}", "record_fps=10.0", "lockstep_participants=[]"]
     cmd = [sys.executable, "-m", "mjnav", "run", "sim", "--connect", router_endpoint]
     proc = subprocess.Popen(
         cmd + [a for s in sets for a in ("--set", s)],
@@ -222,3 +233,33 @@ def test_a_clock_off_the_physics_steps_is_refused_when_the_sim_is_wired(
     bridge = SimBridge(sim, peer(), SimConfig(world="empty", **rates))
     with pytest.raises(ValueError, match="whole number of 2 ms physics steps"):
         bridge.attach(SimRunner(sim, rtf=None))
+
+
+@pytest.mark.parametrize("announce", [True, False])
+def test_sim_time_starts_with_the_spawn_pose_on_initialpose(announce: bool, peer: Callable[..., Bus]) -> None:
+    """Placing the robot at the world's start is part of the simulated world: the sim's first publications (t = 0)
+    tell SLAM where it is, once; `announce_spawn = false` leaves that to an operator."""
+    from mjnav.services.sim import SimBridge, SimConfig
+    from mjnav.sim import SimRunner, Simulator
+
+    sim = Simulator("rooms", seed=0)
+    me = peer()
+    got = me.subscribe("initialpose")
+    clock = me.subscribe("clock")
+    bus = peer()
+    config = SimConfig(world="rooms", announce_spawn=announce, spawn_sigma=(0.1, 0.2))
+    bridge = SimBridge(sim, bus, config)
+    bridge.attach(SimRunner(sim, rtf=None))
+    assert bus.publisher("initialpose").wait_for_subscribers(10.0)  # the sim's session knows `me` subscribes
+    for k in range(3):
+        bridge.advance(k * bridge.clock_period_s)
+    assert clock.wait(10.0, lambda c: ros.seconds(c.clock) >= 0.1) is not None
+    poses = got.drain()
+    if not announce:
+        assert poses == []
+        return
+    assert len(poses) == 1, poses
+    (pose,) = poses
+    assert ros.seconds(pose.header.stamp) == 0.0 and pose.header.frame_id == "map"
+    assert ros.pose_of(pose) == pytest.approx(sim.world.start)
+    assert np.diag(ros.planar_covariance(pose)) == pytest.approx([0.01, 0.01, 0.04])

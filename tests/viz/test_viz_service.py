@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -61,7 +62,7 @@ def test_viz_follows_the_sims_world_or_draws_the_robot_alone(peer: Peer) -> None
     status = me.publisher("sim_status")
     assert status.wait_for_subscribers(10.0)
     status.put(from_dict("mjnav_msgs/msg/SimStatus", {"header": {"frame_id": "map"}, "world": "warehouse"}))
-    assert replay.sim_status.wait(10.0, lambda m: m.world == "warehouse") is not None
+    assert replay.sim_world.sim_status.wait(10.0, lambda m: m.world == "warehouse") is not None
     assert wait_until(lambda: replay.step(0.0) or replay.view.model is not None, 20.0)
     assert replay.view.model is not None and replay.view.model.name == "warehouse"
 
@@ -175,3 +176,27 @@ def test_viz_service_draws_the_bus_live_and_its_snapshot_renders(
     ys, xs = np.nonzero(shot["robot"] & ~control["robot"])
     # The robot at (-2, -3) is in the south-west quarter of the rooms world: lower left of the top-down view.
     assert xs.mean() < width / 2 and ys.mean() > height / 2, (xs.mean(), ys.mean())
+
+
+def test_the_uav_viewer_draws_the_scene_its_sim_runs(peer: Peer, tmp_path: Path) -> None:
+    """Nothing tells uav_viz its scene: it asks the UAV sim (its config, here naming a copy of the field scene) and
+    draws what that sim runs, or field when no sim answers."""
+    from mjnav.services.uav_viz import UavVizConfig, UavVizService
+
+    me, viz_bus = peer("uav0"), peer("uav0")
+    log = logging.getLogger("test.uav_viz")
+    lonely = UavVizService(UavVizConfig(serve=False, world_timeout_s=0.3), viz_bus, log)
+    lonely.configure()
+    lonely.activate()
+    assert wait_until(lambda: lonely.step(0.0) or lonely.drawn_world is not None, 10.0)
+    assert lonely.drawn_world == "field"
+    shutil.copytree(REPO / "mjcf", tmp_path / "mjcf")  # the scene's includes are relative to it
+    copy = tmp_path / "mjcf" / "uav" / "copy_of_field.xml"
+    (tmp_path / "mjcf" / "uav" / "field.xml").rename(copy)
+    string = msg_class("std_msgs/msg/String")
+    me.serve("config", lambda _req: string(data=json.dumps({"world": str(copy)})), service="uav_sim")
+    follower = UavVizService(UavVizConfig(serve=False, world_timeout_s=30.0), viz_bus, log)
+    follower.configure()
+    follower.activate()
+    assert wait_until(lambda: follower.step(0.0) or follower.drawn_world is not None, 20.0)
+    assert follower.drawn_world == str(copy)
