@@ -128,10 +128,8 @@ def run(args: argparse.Namespace) -> int:
                 f"state_source={json.dumps(args.state)}",
             ],
         }
-        if "uav_viz" in stack.names():
-            overrides["uav_viz"] = [f"world={json.dumps(str(sim.path))}"]
-            if out is not None:
-                overrides["uav_viz"].append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
+        if "uav_viz" in stack.names() and out is not None:
+            overrides["uav_viz"] = [f"static_html={json.dumps(str((out / 'scene.html').resolve()))}"]
         if args.record is not None:
             video = Path(args.record) if args.record else (out / "fly.mp4" if out else None)
             if video is None:

@@ -2,11 +2,11 @@
 
 Publishes, stamped in sim time: ``clock``, ``imu`` (body FLU specific force and rate, the AHRS attitude in ENU),
 ``gps`` (``sensor_msgs/NavSatFix`` about the configured geodetic origin, stamped when taken and published
-``gps_delay_s`` later), ``baro`` (static pressure), ``mocap`` (true pose and twist in ENU: the motion-capture
-system; the twist's linear part is expressed in ``map``), ``ground_truth`` (true pose, for evaluation) and
-``sim_status`` (collisions with obstacles, real-time factor, motor watchdog). It drives the rotors with the newest
-``rotor_cmd`` (speeds, rad/s), read at every clock tick; an ESC-style watchdog stops them when that command is older
-than ``motor_timeout_s`` of sim time.
+``gps_delay_s`` later; the origin itself is latched on ``datum``), ``baro`` (static pressure), ``mocap`` (true pose
+and twist in ENU: the motion-capture system; the twist's linear part is expressed in ``map``), ``ground_truth``
+(true pose, for evaluation) and ``sim_status`` (collisions with obstacles, real-time factor, motor watchdog). It
+drives the rotors with the newest ``rotor_cmd`` (speeds, rad/s), read at every clock tick; an ESC-style watchdog
+stops them when that command is older than ``motor_timeout_s`` of sim time.
 
 Time and lockstep are the ground sim's (:class:`~mjnav.services.sim.SimService`, whose stepping loop this service
 reuses): sim time advances one clock tick at a time once every lockstep participant has finished the step that is
@@ -300,6 +300,9 @@ class UavSimService(SimService):
                 track_body=self.sim.body_id,
             )
         self.bridge = UavBridge(self.sim, self.bus, cfg, self.recorder)
+        # Where the world is on Earth: the GPS fixes' reference, latched for the INS (a world fact, on the bus).
+        self.datum = self.bus.publisher("datum")
+        self.datum.put(uav_msgs.nav_sat_fix(0.0, cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m, 0.0))
         self.barrier = (
             LockstepBarrier(self.bus, cfg.lockstep_participants, cfg.lockstep_timeout_s, self.log)
             if cfg.lockstep

@@ -2,8 +2,10 @@
 
 Runs on wall time (not a lockstep participant, so it never holds sim time back): at ``rate_hz`` it moves the
 vehicle along every ``ground_truth`` received since (extending the flown trail) and adds every received
-``trajectory`` to the drawn reference. The meshcat server binds to ``host`` (loopback by default); with
-``static_html`` set, the scene is written there as a self-contained HTML snapshot when the service stops.
+``trajectory`` to the drawn reference. The scene is the world the UAV sim runs, learnt from the bus (its
+``sim_status``, else its config; :class:`~mjnav.viz.simworld.SimWorld`) unless ``world`` names one. The meshcat
+server binds to ``host`` (loopback by default); with ``static_html`` set, the scene is written there as a
+self-contained HTML snapshot when the service stops.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from mjnav.runtime import Service
+from mjnav.viz.simworld import SimWorld
 
 
 @dataclass(frozen=True)
@@ -22,7 +25,8 @@ class UavVizConfig:
 
     Attributes:
         rate_hz: drawing rate (wall time).
-        world: the UAV scene drawn (the sim's).
+        world: the UAV scene drawn; "" = the sim's (from the bus).
+        world_timeout_s: how long to keep asking the sim before drawing the default scene (``field``).
         serve: run the meshcat server (False: build the scene only, for ``static_html``).
         host, web_port, zmq_port, port_search: where the meshcat server listens (0: a free port; a taken port is
             searched upwards ``port_search`` times).
@@ -31,7 +35,8 @@ class UavVizConfig:
     """
 
     rate_hz: float = 10.0
-    world: str = "field"
+    world: str = ""
+    world_timeout_s: float = 10.0
     serve: bool = True
     host: str = "127.0.0.1"
     web_port: int = 7010
@@ -57,7 +62,7 @@ class UavVizService(Service[UavVizConfig]):
 
     def configure(self) -> None:
         from mjnav.viz import MeshcatClient, MeshcatServer, Scene
-        from mjnav.viz.uav import UavView, load_uav_visual
+        from mjnav.viz.uav import UavView
 
         cfg = self.config
         self.server: Any = None
@@ -68,7 +73,12 @@ class UavVizService(Service[UavVizConfig]):
             self.log.info("meshcat viewer at %s", self.server.web_url)
         self.scene = Scene(self.client.send if self.client is not None else None)
         self.view = UavView(self.scene, cfg.trail_spacing_m)
-        self.view.setup(load_uav_visual(cfg.world))
+        self.sim_world = SimWorld(self.bus, "uav_sim", _resolves, cfg.world_timeout_s)
+        self.drawn_world: str | None = None
+        if cfg.world:
+            self._setup(cfg.world)
+        else:
+            self.log.info("waiting for the UAV sim's world (%s)", self.sim_world.where)
         self._lock = threading.Lock()
         self._trajectories: list[Any] = []
         self._poses: list[Any] = []
@@ -83,7 +93,21 @@ class UavVizService(Service[UavVizConfig]):
         with self._lock:
             self._trajectories.append(msg)
 
+    def _setup(self, world: str) -> None:
+        from mjnav.viz.uav import load_uav_visual
+
+        self.view.setup(load_uav_visual(world or "field"))
+        self.drawn_world = world or "field"
+        self.log.info("drawing the UAV scene %s", self.drawn_world)
+
     def step(self, now: float) -> None:
+        if self.drawn_world is None:
+            world = self.sim_world.find()
+            if world is None:
+                return  # the poses and trajectories wait in their queues
+            if not world:
+                self.log.warning("no world from the UAV sim (%s): drawing field", self.sim_world.where)
+            self._setup(world)
         with self._lock:
             trajectories, self._trajectories = self._trajectories, []
             poses, self._poses = self._poses, []
@@ -102,3 +126,15 @@ class UavVizService(Service[UavVizConfig]):
         if self.server is not None:
             self.server.stop()
         self.log.info("drew %s", ", ".join(f"{k} {v}" for k, v in sorted(self.view.drawn.items())) or "nothing")
+
+
+def _resolves(world: str) -> bool:
+    """Whether ``world`` names a UAV scene here (a bundled name or an existing file)."""
+    from mjnav.sim import UnknownWorldError
+    from mjnav.sim.uav import resolve_uav_world
+
+    try:
+        resolve_uav_world(world)
+    except UnknownWorldError:
+        return False
+    return True
