@@ -21,7 +21,7 @@ DEMO_WORLD ?= rooms
 DEMO_RTF ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: demo test setup warmup system-deps test-deps lint bench clean
+.PHONY: demo test setup warmup system-deps test-deps lint bench lock clean
 
 # The mission: the robot maps the world from scratch and drives to its goal; video, map and summary in runs/.
 demo: setup
@@ -80,6 +80,14 @@ test-deps:
 	else \
 	  echo "NOTE: without$$missing the browser check and compose validation skip (sudo apt-get install$$missing)"; \
 	fi
+
+# docker/requirements.txt: the image's pinned packages, resolved afresh in a scratch virtual environment from
+# pyproject.toml's dependencies and the foxglove extra.
+lock:
+	@tmp=$$(mktemp -d); $(PYTHON) -m venv $$tmp/venv && $$tmp/venv/bin/pip install --quiet --upgrade pip && \
+	  $$tmp/venv/bin/pip install --quiet '.[foxglove]' && \
+	  { sed -n '/^#/p' docker/requirements.txt; $$tmp/venv/bin/pip freeze --exclude mjnav; } > $$tmp/requirements.txt && \
+	  mv $$tmp/requirements.txt docker/requirements.txt; rm -rf $$tmp; echo "wrote docker/requirements.txt"
 
 bench: setup
 	@for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b --quick || exit 1; done
