@@ -122,7 +122,8 @@ class SlamService(Service[SlamServiceConfig]):
         self.static_map: OccupancyGrid | None = None
         if cfg.mode == "localization":
             self.static_map = OccupancyGrid.from_ros_map(read_ros_map(cfg.map_file))
-        self.laser: tuple[str, tuple[float, float, float]] | None = None  # (frame, its x, y, yaw in base_link)
+        # ((description version, frame), the frame's x, y, yaw in base_link or None when the robot lacks it)
+        self.laser: tuple[tuple[int, str], tuple[float, float, float] | None] | None = None
         self.scans = 0
         self.last_scan_used = -math.inf  # sim time of the newest scan SLAM used
         self.failures = 0
@@ -147,19 +148,20 @@ class SlamService(Service[SlamServiceConfig]):
         return ""
 
     def _lidar_pose(self, frame: str) -> tuple[float, float, float] | None:
-        """(x, y, yaw) in base_link of the scan frame ``frame``, from the robot description (None: unknown
-        frame, logged once per frame)."""
-        if self.laser is not None and self.laser[0] == frame:
+        """(x, y, yaw) in base_link of the scan frame ``frame``, from the robot description (None: a frame the robot
+        does not have, logged once per frame and description)."""
+        key = (self.robot.version, frame)
+        if self.laser is not None and self.laser[0] == key:
             return self.laser[1]
         robot = self.robot.current
         assert robot is not None  # starting() waited for it
+        pose: tuple[float, float, float] | None
         try:
             pose = robot.frame(frame).planar
         except DescriptionError as exc:
-            self.log.warning("scan in frame %r not used: %s", frame, exc)
-            self.laser = (frame, (math.nan, math.nan, math.nan))
-            return None
-        self.laser = (frame, pose)
+            self.log.warning("scans in frame %r not used: %s", frame, exc)
+            pose = None
+        self.laser = (key, pose)
         return pose
 
     def activate(self) -> None:

@@ -73,7 +73,9 @@ class UavVizService(Service[UavVizConfig]):
             self.log.info("meshcat viewer at %s", self.server.web_url)
         self.scene = Scene(self.client.send if self.client is not None else None)
         self.view = UavView(self.scene, cfg.trail_spacing_m)
-        self.sim_world = SimWorld(self.bus, "uav_sim", _resolves, cfg.world_timeout_s)
+        from mjnav.sim.uav import resolve_uav_world
+
+        self.sim_world = SimWorld(self.bus, "uav_sim", resolve_uav_world, cfg.world_timeout_s)
         self.drawn_world: str | None = None
         if cfg.world:
             self._setup(cfg.world)
@@ -126,15 +128,3 @@ class UavVizService(Service[UavVizConfig]):
         if self.server is not None:
             self.server.stop()
         self.log.info("drew %s", ", ".join(f"{k} {v}" for k, v in sorted(self.view.drawn.items())) or "nothing")
-
-
-def _resolves(world: str) -> bool:
-    """Whether ``world`` names a UAV scene here (a bundled name or an existing file)."""
-    from mjnav.sim import UnknownWorldError
-    from mjnav.sim.uav import resolve_uav_world
-
-    try:
-        resolve_uav_world(world)
-    except UnknownWorldError:
-        return False
-    return True

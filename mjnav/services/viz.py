@@ -115,7 +115,9 @@ class VizService(Service[VizConfig]):
         # when it draws.
         self.snapshot_subs = {name: self.bus.subscribe(name, lossy=True) for name in snapshots}
         self.event_subs = {name: self.bus.subscribe(name, lossy=True) for name in ("goal", "goal_status")}
-        self.sim_world = SimWorld(self.bus, "sim", _resolves, cfg.world_timeout_s)
+        from mjnav.sim import resolve_world
+
+        self.sim_world = SimWorld(self.bus, "sim", resolve_world, cfg.world_timeout_s)
         self.world_name = ""
         self._failures: dict[str, int] = {}
 
@@ -228,14 +230,3 @@ def _can_open_browser() -> bool:
     if os.environ.get("MJNAV_HEADLESS", "") not in ("", "0"):
         return False
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-def _resolves(world: str) -> bool:
-    """Whether ``world`` names a ground world here (a bundled name or an existing file)."""
-    from mjnav.sim import UnknownWorldError, resolve_world
-
-    try:
-        resolve_world(world)
-    except UnknownWorldError:
-        return False
-    return True

@@ -21,14 +21,16 @@ class SimWorld:
     Args:
         bus: the viewer's bus.
         sim: the sim service's name (``sim``, ``uav_sim``).
-        resolves: whether a name from ``sim_status`` names a world this viewer can load.
+        resolve: the world's path from a name or path (:func:`mjnav.sim.resolve_world`,
+            :func:`mjnav.sim.uav.resolve_uav_world`); :class:`mjnav.sim.UnknownWorldError` for a name this viewer
+            cannot load (a scene file elsewhere: only its name is in ``sim_status``).
         timeout_s: wall seconds to keep asking before :meth:`find` gives up.
     """
 
-    def __init__(self, bus: Bus, sim: str, resolves: Callable[[str], bool], timeout_s: float) -> None:
+    def __init__(self, bus: Bus, sim: str, resolve: Callable[[str], object], timeout_s: float) -> None:
         self.bus = bus
         self.sim = sim
-        self.resolves = resolves
+        self.resolve = resolve
         self.timeout_s = timeout_s
         self.sim_status = bus.subscribe("sim_status", lossy=True)
         self.started = time.monotonic()
@@ -46,8 +48,14 @@ class SimWorld:
         return "" if time.monotonic() - self.started >= self.timeout_s else None
 
     def _from_status(self) -> str | None:
+        from mjnav.sim import UnknownWorldError
+
         msg: Any = self.sim_status.latest()
-        if msg is None or not msg.world or not self.resolves(str(msg.world)):
+        if msg is None or not msg.world:
+            return None
+        try:
+            self.resolve(str(msg.world))
+        except UnknownWorldError:
             return None
         return str(msg.world)
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -16,14 +15,11 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
-import pytest
-import yaml
-
 from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.runtime.stack import load_stack
 from tests.conftest import REPO, free_port
+from tests.deploy.test_compose import resolved_compose
 
-COMPOSE = REPO / "docker" / "compose.yaml"
 GOAL = ("3.8", "2.2")  # the rooms world's goal (services/sim.toml runs rooms)
 #: Sim time the goal leaves at (`mjnav goal --at`): the services are up well before at rtf 1 (sim.toml).
 GOAL_AT_S = "10"
@@ -123,18 +119,6 @@ def test_every_service_run_alone_navigates_as_mjnav_up_does() -> None:
     assert (up["state"], up["time_s"], up["t"]) == (alone["state"], alone["time_s"], alone["t"])
 
 
-def _compose_services() -> dict[str, Any]:
-    exe = shutil.which("docker-compose")
-    if exe is None:
-        pytest.skip("docker-compose not installed (Debian: apt-get install docker-compose; make test installs it)")
-    proc = subprocess.run(
-        [exe, "-f", str(COMPOSE), "config"], cwd=REPO, capture_output=True, text=True, timeout=120, check=False
-    )
-    assert proc.returncode == 0, proc.stderr
-    services: dict[str, Any] = yaml.safe_load(proc.stdout)["services"]
-    return services
-
-
 def _local(arg: str, port: int) -> str:
     """A compose command argument with the router's network address made local."""
     return arg.replace("tcp/router:7447", f"tcp/127.0.0.1:{port}").replace("tcp/0.0.0.0:7447", f"tcp/127.0.0.1:{port}")
@@ -144,7 +128,7 @@ def test_the_compose_commands_run_as_local_processes_navigate() -> None:
     """What `docker compose up` runs (the default profile: the router and the ground stack), each command as
     docker-compose resolves it, with its container's environment, on loopback: the services report healthy and
     lacking nothing, and the goal is reached."""
-    services = _compose_services()
+    services = resolved_compose()
     default = {name: svc for name, svc in services.items() if not svc.get("profiles")}
     assert set(default) == {"router", *load_stack().names()}
     port = free_port()

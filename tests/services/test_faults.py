@@ -229,11 +229,26 @@ def test_health_without_a_router_answers_within_its_timeout() -> None:
     assert "no Zenoh router or peer reachable" in done.stderr
 
 
-def test_health_status_names_a_stalled_loop() -> None:
-    """A sim-time service without a sim: alive and active, but its loop never steps."""
+def test_health_status_names_a_service_without_clock_or_with_a_stalled_loop() -> None:
+    """A sim-time service without a sim is alive and active but lacks the clock: health names it. With the sim, it
+    steps and is healthy; once the sim freezes (SIGSTOP), its step count stops and health says the loop stalled."""
     with up_process("--only", "smoother") as (port, _proc, _lines):
         connect = ["--mode", "client", "--connect", f"tcp/127.0.0.1:{port}"]
         assert wait_until(lambda: _mjnav("health", "smoother", *connect, "--timeout", "2").returncode == 0, 120.0)
         done = _mjnav("health", "smoother", "--status", *connect, "--timeout", "3")
         assert done.returncode == 1, done.stdout + done.stderr
-        assert "smoother: loop stalled (step count stuck at 0)" in done.stderr
+        assert "smoother: waiting for the clock on robot0/clock (sim time has not started)" in done.stderr
+    with up_process("--only", "sim,smoother", "--set", "sim.rtf=1", "--hung-timeout", "60") as (port, _proc, _lines):
+        connect = ["--mode", "client", "--connect", f"tcp/127.0.0.1:{port}"]
+        healthy = ["health", "sim", "smoother", "--status", *connect, "--timeout", "3"]
+        assert wait_until(lambda: _mjnav(*healthy).returncode == 0, 120.0)
+        with Bus.open(BusConfig(mode="client", connect=(f"tcp/127.0.0.1:{port}",))) as bus:
+            status = bus.subscribe("status", service="sim").wait(10.0)
+            assert status is not None
+        os.kill(int(status.pid), signal.SIGSTOP)
+        try:
+            frozen = _mjnav("health", "smoother", "--status", *connect, "--timeout", "3")
+        finally:
+            os.kill(int(status.pid), signal.SIGCONT)
+        assert frozen.returncode == 1 and "smoother: loop stalled (step count stuck at" in frozen.stderr, frozen.stderr
+        assert wait_until(lambda: _mjnav(*healthy).returncode == 0, 60.0)

@@ -148,3 +148,19 @@ def test_the_whole_stack_drives_the_edited_robot(tmp_path: Path) -> None:
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert summary["reached"] and summary["collisions"] == 0, summary
     assert summary["min_clearance_m"] > 0.0 and summary["ate_rms_m"] < 0.02, summary
+
+
+def test_slam_uses_no_scan_of_a_frame_the_robot_lacks(peer: Peer) -> None:
+    """A scan stamped in a frame the description has not (another robot's lidar) is not placed anywhere: SLAM does
+    not start on it, and its status says it has no scan to use."""
+    h = Harness(SlamService, peer, ("pose",), use_gyro=False, initial_pose=(0.5, 0.3, 0.0))
+    for k in range(60):
+        t = 0.1 * k
+        h.send("odom", ros.odometry(t, Pose2D(0.0, 0.0, 0.0), 0.0, 0.0))
+        scan = _scan(t, Pose2D(0.5, 0.3, 0.0), 0.0)
+        scan.header.frame_id = "front_laser"  # type: ignore[attr-defined]
+        h.send("scan", scan)
+        h.step(t)
+    assert h.received["pose"] == [] and h.service.slam is None
+    assert h.service.starved() == "scans on robot0/scan (none used for 5 s)"
+    h.close()
