@@ -17,8 +17,9 @@ obstacle layer marks the newest ``scan``'s returns within ``obstacle_range_m`` a
 saves the newest SLAM map.
 
 The grid grows with what the robot explores (Nav2's static layer resizes to the map it receives): it starts around
-the first scan and is extended, on the same cells, whenever a scan could reach beyond it (the lidar's range around
-the sensor, ``grow_margin_m`` more so that it grows seldom), and to cover SLAM's map in slam mode. The robot's
+the first scan and is extended, on the same cells, whenever a scan touches cells beyond it (its returns, and its
+free beams up to ``max_range_m``; ``grow_margin_m`` more, so that it grows seldom), and to cover SLAM's map in slam
+mode. A goal beyond it is the planner's business (it plans through unknown space up to a margin). The robot's
 footprint radius (the costmap's inscribed band) and where the lidar sits come from the robot description the sim
 latches (:mod:`mjnav.runtime.robot`); nothing about the robot or the world is configured here.
 """
@@ -64,7 +65,7 @@ class MapperConfig:
             the cells before them and mark nothing. The planner then plans through a cart crossing its way, which
             the controller waits for, rather than around each place the cart was.
         resolution_m: cell size of the grid, metres.
-        grow_margin_m: when a scan could reach beyond the grid, the grid grows to the lidar's reach plus this much
+        grow_margin_m: when a scan touches cells beyond the grid, the grid grows to hold them plus this much
             (metres), so that it grows every few metres of driving, not at every scan.
         max_range_m: readings at or beyond this are "no return" (free up to it).
         inflation_radius_m: cost decays to 0 at this distance from obstacles (0.7 left a 1.4 m corridor one
@@ -86,7 +87,7 @@ class MapperConfig:
     obstacle_range_m: float = 3.0
     moving_speed_mps: float = 0.25
     resolution_m: float = 0.05
-    grow_margin_m: float = 5.0
+    grow_margin_m: float = 2.0
     max_range_m: float = 12.0
     inflation_radius_m: float = 0.5
     cost_scaling_factor: float = 5.0
@@ -291,8 +292,8 @@ class MapperService(Service[MapperConfig]):
         sensor = pose * laser
         ranges = np.asarray(scan.ranges, dtype=np.float64)
         max_range = min(float(scan.range_max), self.config.max_range_m)
-        # Everything this scan can touch lies within max_range of the sensor: the grid must hold it.
-        grid = self._cover(sensor.x - max_range, sensor.y - max_range, sensor.x + max_range, sensor.y + max_range)
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+        grid = self._cover(*_scan_extent(sensor, angles, ranges, float(scan.range_min), max_range))
         tracked = track_scan(
             stamp,
             (sensor.x, sensor.y, sensor.theta),
@@ -314,7 +315,6 @@ class MapperService(Service[MapperConfig]):
             return
         marks = np.ones(len(ranges), dtype=bool)
         marks[tracked.beams[moving]] = False
-        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
         grid.integrate_scan(sensor, angles, ranges, max_range, min_range_m=float(scan.range_min), marks=marks)
 
     def _on_walls(self, points: Any) -> Any:
@@ -428,3 +428,18 @@ class MapperService(Service[MapperConfig]):
                 self.log.warning("map not saved to %s: %s", self.config.save_path, exc)
                 return
             self.log.info("map saved to %s (%d scans used)", written, self.scans)
+
+
+def _scan_extent(
+    sensor: Pose2D, angles: Any, ranges: Any, range_min_m: float, max_range_m: float
+) -> tuple[float, float, float, float]:
+    """(x_min, y_min, x_max, y_max) of what a scan touches in the map frame: the sensor and each beam's end — its
+    return, or ``max_range_m`` along it for a beam without one (it clears the cells up to there) — metres. Beams too
+    close to measure touch nothing (:meth:`OccupancyGrid.integrate_scan`)."""
+    r = np.asarray(ranges, dtype=np.float64)
+    used = ~(np.isneginf(r) | (r < range_min_m) | (r <= 0.0))
+    reach = np.where(np.isfinite(r) & (r < max_range_m), r, max_range_m)[used]
+    heading = sensor.theta + np.asarray(angles, dtype=np.float64)[used]
+    xs = np.append(sensor.x + reach * np.cos(heading), sensor.x)
+    ys = np.append(sensor.y + reach * np.sin(heading), sensor.y)
+    return float(xs.min()), float(ys.min()), float(xs.max()), float(ys.max())

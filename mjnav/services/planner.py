@@ -76,6 +76,9 @@ class PlannerConfig:
             inscribed band after passing close to a wall).
         replan_period_s: how often (sim s) a cheaper route is looked for while following.
         improvement: switch to a new route only when it is cheaper than this fraction of the remaining one.
+        unknown_margin_m: the costmap covers what the robot has seen; a goal (or the robot, or the route) up to this
+            far outside it is planned to through unknown space (the grid grown with unknown cells); a goal further
+            out fails with ``ERROR_OUTSIDE_MAP``.
         costmap_timeout_s: a costmap stamped longer ago than this (sim s) is stale: not planned on, and the plan is
             withdrawn until a fresh one arrives (the mapper publishes at 2 Hz).
         seed: seed of the potential field's random escapes.
@@ -92,6 +95,7 @@ class PlannerConfig:
     start_clearance_m: float = 0.25
     replan_period_s: float = 2.0
     improvement: float = 0.9
+    unknown_margin_m: float = 10.0
     costmap_timeout_s: float = 3.0
     seed: int = 0
 
@@ -104,6 +108,8 @@ class PlannerConfig:
             raise ValueError(f"improvement must be in (0, 1], got {self.improvement}")
         if not self.costmap_timeout_s > 0:
             raise ValueError(f"costmap_timeout_s must be > 0, got {self.costmap_timeout_s}")
+        if not self.unknown_margin_m >= 0:
+            raise ValueError(f"unknown_margin_m must be >= 0, got {self.unknown_margin_m}")
 
 
 _ERRORS: list[tuple[type[PlanningError], str]] = [
@@ -247,20 +253,28 @@ class PlannerService(Service[PlannerConfig]):
             return None  # nothing known yet: the first plan decides
         cells, frame = ros.grid_frame(costmap_msg)
         x, y = goal.pose.position.x, goal.pose.position.y
+        outside = self._too_far_outside(frame, x, y)
+        if outside is not None:
+            return "ERROR_OUTSIDE_MAP", outside
         row, col = frame.world_to_cell(x, y)
-        if not frame.contains(row, col):
-            (x0, y0), (x1, y1) = frame.cells_to_world([[0, 0], [frame.shape[0] - 1, frame.shape[1] - 1]])
-            half = frame.resolution_m / 2
-            return "ERROR_OUTSIDE_MAP", (
-                f"goal ({x:.2f}, {y:.2f}) m lies outside the costmap, x {x0 - half:.2f}..{x1 + half:.2f} m, "
-                f"y {y0 - half:.2f}..{y1 + half:.2f} m"
-            )
-        if cells[row, col] >= INSCRIBED:
+        if frame.contains(row, col) and cells[row, col] >= INSCRIBED:
             return "ERROR_GOAL_OCCUPIED", (
                 f"goal ({x:.2f}, {y:.2f}) m is in an obstacle or closer to one than the robot's radius "
                 f"(cost {cells[row, col]} at cell ({row}, {col}))"
             )
         return None
+
+    def _too_far_outside(self, frame: GridFrame, x: float, y: float) -> str | None:
+        """Why goal (x, y) is out of reach of planning on the costmap ``frame`` (further than ``unknown_margin_m``
+        outside it), or None."""
+        x0, x1, y0, y1 = _extent(frame)
+        beyond = math.hypot(max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1))
+        if beyond <= self.config.unknown_margin_m:
+            return None
+        return (
+            f"goal ({x:.2f}, {y:.2f}) m lies outside the costmap, x {x0:.2f}..{x1:.2f} m, y {y0:.2f}..{y1:.2f} m: "
+            f"{beyond:.2f} m beyond it, more than planner.unknown_margin_m = {self.config.unknown_margin_m:g} m"
+        )
 
     # ----------------------------------------------------------------------------------------------- loop
 
@@ -342,14 +356,22 @@ class PlannerService(Service[PlannerConfig]):
         if goal.cells is not None and not fresh:
             return
         cells, frame = ros.grid_frame(costmap_msg)
-        if goal.cells is not None and goal.frame is not None and goal.frame != frame:
+        robot = latest[1]
+        outside = self._too_far_outside(frame, goal.pose.x, goal.pose.y)
+        if outside is not None:
+            self._end(now, "FAILED", "ERROR_OUTSIDE_MAP", outside)
+            return
+        # The robot, the goal and the current route may lie in unknown space beyond what the costmap covers yet:
+        # plan on the costmap grown (on the same cells) with unknown cells around them.
+        route = None if goal.cells is None or goal.frame is None else goal.frame.cells_to_world(goal.cells)
+        points = [(robot.x, robot.y), (goal.pose.x, goal.pose.y), *([] if route is None else route)]
+        cells, frame = _padded(cells, frame, np.asarray(points, dtype=np.float64), self.config.start_clearance_m)
+        if route is not None and goal.frame != frame:
             # The costmap grew: the same route, indexed in the new grid (same cells, shifted).
-            goal.cells = frame.world_to_cells(goal.frame.cells_to_world(goal.cells))
-            goal.frame = frame
+            goal.cells, goal.frame = frame.world_to_cells(route), frame
         occupied, cost = planning_grid(
             cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost
         )
-        robot = latest[1]
         start = frame.world_to_cell(robot.x, robot.y)
         target = frame.world_to_cell(goal.pose.x, goal.pose.y)
         if frame.contains(*start) and not cells[start] >= 100:
@@ -447,3 +469,24 @@ class PlannerService(Service[PlannerConfig]):
         """The part of a plan from the cell nearest the robot on."""
         d = np.abs(cells - np.asarray(start)).max(axis=1)
         return cells[int(np.argmin(d)) :]
+
+
+def _extent(frame: GridFrame) -> tuple[float, float, float, float]:
+    """(x_min, x_max, y_min, y_max) a grid covers, metres (an unrotated grid: the costmaps mjnav makes)."""
+    (ox, oy), (h, w), res = frame.origin_m, frame.shape, frame.resolution_m
+    return ox, ox + w * res, oy, oy + h * res
+
+
+def _padded(cells: Any, frame: GridFrame, points: Any, margin_m: float) -> tuple[Any, GridFrame]:
+    """The grid extended with unknown cells (-1), on the same cells, until every point of ``points`` ((N, 2),
+    metres) lies at least ``margin_m`` inside it; the grid itself when they already do."""
+    (ox, oy), (h, w), res = frame.origin_m, frame.shape, frame.resolution_m
+    lo = (np.min(points, axis=0) - margin_m - (ox, oy)) / res
+    hi = (np.max(points, axis=0) + margin_m - (ox, oy)) / res
+    c0, r0 = min(0, math.floor(lo[0])), min(0, math.floor(lo[1]))
+    c1, r1 = max(w, math.ceil(hi[0])), max(h, math.ceil(hi[1]))
+    if (c0, r0, c1, r1) == (0, 0, w, h):
+        return cells, frame
+    grown = np.full((r1 - r0, c1 - c0), -1, dtype=cells.dtype)
+    grown[-r0 : -r0 + h, -c0 : -c0 + w] = cells
+    return grown, GridFrame(res, (ox + c0 * res, oy + r0 * res), grown.shape)

@@ -513,3 +513,19 @@ def test_thresholds_are_strict_free_below_occupied_above() -> None:
 def test_thresholds_at_the_clamp_bounds_are_rejected() -> None:
     with pytest.raises(InvalidParameterError, match="strictly within"):
         LogOddsModel(min_log_odds=-2.0, free_threshold=-2.0)
+
+
+def test_a_grid_grows_on_the_same_cells_and_keeps_what_it_knows() -> None:
+    g = OccupancyGrid(10, 8, 0.1, (1.0, 2.0))
+    g.log_odds[3, 4] = 2.5
+    same = g.grown_to(1.2, 2.1, 1.9, 2.7)  # inside already
+    assert same is g
+    grown = g.grown_to(0.75, 2.0, 2.31, 3.0)  # 0.25 m left (3 cells), 0.31 m right (4 cells), 0.2 m up (2 cells)
+    assert grown is not g and grown.origin_m == pytest.approx((0.7, 2.0))
+    assert grown.shape == (10, 17)
+    assert grown.log_odds[3, 4 + 3] == 2.5 and np.count_nonzero(grown.log_odds != grown.model.prior_log_odds) == 1
+    assert grown.world_to_cell(1.45, 2.35) == (3, 7)  # the cell that was (3, 4): the same place
+    with pytest.raises(InvalidParameterError):
+        g.grown_to(2.0, 2.0, 1.0, 3.0)
+    with pytest.raises(InvalidParameterError):
+        g.grown_to(0.0, math.nan, 1.0, 3.0)

@@ -63,8 +63,8 @@ def test_navigate_accepts_with_the_id_its_statuses_carry(peer: Peer) -> None:
     ("x", "y", "frame", "code", "words"),
     [
         (1.0, 1.0, "odom", "ERROR_INVALID_GOAL", "'odom' is not 'map'"),
-        (5.5, 1.0, "map", "ERROR_OUTSIDE_MAP", "outside the costmap, x 0.00..4.00 m"),
-        (-0.5, 1.0, "map", "ERROR_OUTSIDE_MAP", "(-0.50, 1.00) m"),
+        (15.5, 1.0, "map", "ERROR_OUTSIDE_MAP", "outside the costmap, x 0.00..4.00 m, y 0.00..4.00 m: 11.50 m beyond"),
+        (-10.5, 1.0, "map", "ERROR_OUTSIDE_MAP", "(-10.50, 1.00) m"),
         (2.05, 1.0, "map", "ERROR_GOAL_OCCUPIED", "in an obstacle"),
     ],
 )

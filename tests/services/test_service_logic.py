@@ -13,6 +13,7 @@ import pytest
 
 from mjnav.bus import Bus, NoReply, RemoteError, wait_until
 from mjnav.geometry import Pose2D
+from mjnav.mapping import CellState
 from mjnav.msgs import msg_class, ros
 from mjnav.services.controller import ControllerService
 from mjnav.services.mapper import MapperService
@@ -126,7 +127,7 @@ def test_planner_refuses_goals_it_cannot_serve(planner: Harness) -> None:
     cases = [
         (Pose2D(3.05, 2.05, 0.0), "map", STATUS.ERROR_NO_PATH),
         (Pose2D(2.55, 2.05, 0.0), "map", STATUS.ERROR_GOAL_OCCUPIED),
-        (Pose2D(9.0, 2.0, 0.0), "map", STATUS.ERROR_OUTSIDE_MAP),
+        (Pose2D(20.0, 2.0, 0.0), "map", STATUS.ERROR_OUTSIDE_MAP),  # 16 m beyond the 4 x 4 m costmap
         (Pose2D(1.0, 1.0, 0.0), "odom", STATUS.ERROR_INVALID_GOAL),
     ]
     for i, ((pose, frame, error), total) in enumerate(zip(cases, (3, 6, 9, 11), strict=True)):
@@ -422,6 +423,16 @@ def test_the_planner_ends_a_goal_on_the_controllers_report(planner: Harness) -> 
     assert failed.error_text == "no progress: moved less" and ros.seconds(failed.header.stamp) == 0.5
 
 
+def test_a_goal_beyond_what_the_robot_has_seen_is_planned_through_unknown_space(planner: Harness) -> None:
+    """The costmap covers what the robot has seen so far; a goal 1.5 m beyond it (behind a wall the lidar has not
+    looked past yet) is planned to through unknown cells, not refused."""
+    planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(5.5, 2.05, 0.0)))
+    planner.step(0.0, {"goal_status": 3, "plan": 1})
+    assert _states(planner)[-1] == (1, STATUS.STATE_FOLLOWING, 0)
+    pts = ros.path_points(planner.received["plan"][-1])
+    assert pts[-1] == pytest.approx((5.5, 2.05), abs=RES) and pts[:, 0].max() > 4.0
+
+
 def test_the_planner_carries_its_route_over_to_a_grown_costmap(planner: Harness) -> None:
     """The costmap grows with what the robot explores: the same route, re-indexed, is neither lost nor replanned."""
     planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
@@ -693,3 +704,39 @@ def test_services_that_start_late_get_the_goal_and_its_plan_from_the_transport(p
     controller.step(0.2, {"cmd_vel": 1})
     assert controller.service.goal is not None and controller.service.goal.goal_id == 1
     assert controller.received["cmd_vel"][-1].linear.x > 0.0
+
+
+def test_the_mapper_grows_its_grid_with_what_the_robot_sees(peer: Peer) -> None:
+    """Down a 40 m corridor the grid follows the robot: it holds every cell a scan touched (returns, and free beams
+    up to their range), keeps what it knew, stays on the same cells, and is the corridor's size, not the lidar's
+    range around the whole drive."""
+    from tests.estimation._scans import raycast
+
+    walls = np.array([(-1, -1, 41, -1), (-1, 1, 41, 1), (-1, -1, -1, 1), (41, -1, 41, 1)], dtype=float)
+    h = Harness(MapperService, peer, (), pose_source="ground_truth", checkpoint_period_s=0.0, grow_margin_m=1.0)
+    first_origin = None
+    for k in range(44):  # four scans at the start (a cell needs three hits to be occupied), then 1 m per scan
+        t, x = 0.1 * k, max(0.0, k - 3.0)
+        angles, ranges = raycast(walls, (x, 0.0, 0.0), 360, 2 * math.pi, 12.0)
+        h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(x, 0.0, 0.0)))
+        h.send("scan", ros.laser_scan(
+            t, "laser", angle_min_rad=float(angles[0]), angle_increment_rad=float(angles[1] - angles[0]),
+            scan_time_s=0.1, range_min_m=0.05, range_max_m=12.0, ranges_m=ranges,
+        ))  # fmt: skip
+        h.step(t)
+        grid = h.service.grid
+        x0, x1, y0, y1 = grid.extent_m
+        assert x0 <= -1.0 and x1 >= min(x + 12.0, 41.0) and y0 <= -1.0 and y1 >= 1.0, (k, grid.extent_m)
+        first_origin = first_origin or grid.origin_m
+        shift = (np.asarray(grid.origin_m) - first_origin) / grid.resolution_m
+        assert np.allclose(shift, np.round(shift), atol=1e-6)  # the same cells
+        if k == 3:
+            states = h.service.grid.states()
+            wall = [h.service.frame.world_to_cell(0.0, y) for y in (-1.02, -0.98)]  # the line y = -1 at x = 0
+            assert CellState.OCCUPIED in [states[c] for c in wall]
+    x0, x1, y0, y1 = h.service.grid.extent_m
+    assert x1 - x0 <= 42.0 + 2 * 1.0 + 0.2 and y1 - y0 <= 2.0 + 2 * 1.0 + 0.2  # the corridor, the margins, a cell
+    states = h.service.grid.states()
+    wall = [h.service.frame.world_to_cell(0.0, y) for y in (-1.02, -0.98)]  # the wall line y = -1 at x = 0
+    assert CellState.OCCUPIED in [states[c] for c in wall]  # seen at the start, kept through every growth
+    h.close()
