@@ -1,10 +1,10 @@
-"""The client side of lockstep shared by mission clients (``MissionClient``, ``FlightClient``).
+"""The client side of lockstep shared by mission clients (``MissionClient``, ``FlightClient``, ``mjnav goal --at``).
 
 From its first job on, a client is a lockstep participant: it steps every ``period_s`` of sim time in the clock's
 callback (:meth:`LockstepParticipant._step`, under ``_lock``, after committing what arrived before that clock) and
-reports the step on ``<ns>/lockstep/<name>`` like a service. A clock more than
-:data:`~mjnav.runtime.runner.MAX_CLOCK_JUMP_S` ahead is dropped (forged); one going back (the sim restarted)
-re-syncs the steps.
+reports the step on ``<ns>/lockstep/<name>`` like a service. Its clock is a :class:`~mjnav.runtime.simtime.SimClock`
+(a clock more than :data:`~mjnav.runtime.simtime.MAX_CLOCK_JUMP_S` ahead is dropped as forged; one going back — the
+sim restarted — re-syncs the steps); its schedule a :class:`~mjnav.runtime.simtime.Schedule`.
 """
 
 from __future__ import annotations
@@ -14,8 +14,7 @@ import threading
 from typing import Any
 
 from mjnav.bus import Bus
-from mjnav.msgs import msg_class, ros
-from mjnav.runtime.runner import MAX_CLOCK_JUMP_S
+from mjnav.runtime.simtime import LockstepReporter, Schedule, SimClock, SimTimeGate
 
 
 class LockstepParticipant:
@@ -28,52 +27,50 @@ class LockstepParticipant:
         self.period_s = period_s
         self._lock = threading.Condition()
         self._now = math.nan
-        self._next_tick = math.nan
-        self._participating = False
-        self.rejected_clocks = 0  # clock messages dropped as too far ahead (forged)
-        bus.staged = True
-        self._ready_pub = bus.publisher("lockstep", service=name)
-        self._ready = msg_class("mjnav_msgs/msg/LockstepReady")
+        self._schedule: Schedule | None = None  # None: not taking part; its next due time is the next step's
+        self._reporter: LockstepReporter | None = None
+        self._gate = SimTimeGate(bus)
+
+    @property
+    def rejected_clocks(self) -> int:
+        """Clock messages dropped as too far ahead (forged)."""
+        return self._clock.rejected_jumps
 
     def _subscribe_clock(self) -> Any:
         """Subscribe to the clock (call last in ``__init__``, after the other subscriptions)."""
-        return self.bus.subscribe("clock", callback=self._on_clock, immediate=True)
+        self._clock = SimClock(self.bus, [self._gate], on_tick=self._on_tick)
+        return self._clock._sub
 
     def _participate(self) -> None:
         """Take part from the next clock on (declares the lockstep token the first time)."""
         with self._lock:
-            join = not self._participating
-            self._participating = True
-            self._next_tick = -math.inf  # the first step at the first clock from here on
+            join = self._reporter is None
+            self._schedule = Schedule(self.period_s, math.nan)  # the first step at the first clock from here on
         if join:
             # From now on the sim waits for this client's steps; a sim that expects it starts time only now.
-            self.bus.declare_lockstep(self.name)
+            self._reporter = LockstepReporter(self.bus, self.name)
 
     def _step(self, t: float) -> None:
         """One lockstep step at sim time ``t`` (called under ``_lock``)."""
         raise NotImplementedError
 
-    def _on_clock(self, msg: Any) -> None:
-        t = ros.seconds(msg.clock)
+    def _next_step(self, t: float) -> None:
+        """Make the next step due at ``t`` rather than on the period (call from :meth:`_step`)."""
+        assert self._schedule is not None
+        self._schedule.reset(t)
+
+    def _on_tick(self, t: float, restarted: bool) -> None:
         with self._lock:
-            if t > self._now + MAX_CLOCK_JUMP_S:  # forged or corrupt: the services drop it too
-                self.rejected_clocks += 1
-                return
-        self.bus.commit(t)  # what was sent before this clock: measurements and statuses up to t
-        with self._lock:
-            if not t >= self._now:  # the first clock, or the sim restarted
-                self._next_tick = t
             self._now = t
-            if not self._participating:
+            schedule = self._schedule
+            if schedule is None:
                 return
-            if self._next_tick == -math.inf:
-                self._next_tick = t
-            if t < self._next_tick - 1e-9:
+            if restarted or math.isnan(schedule.origin_s):
+                schedule.reset(t)  # the first clock since taking part, or the sim restarted
+            if not schedule.due(t):
                 return
             self._step(t)
-            while self._next_tick <= t + 1e-9:
-                self._next_tick += self.period_s
+            ready_until = schedule.next_s
             self._lock.notify_all()
-        self._ready_pub.put(
-            self._ready(header=ros.header(t, ""), participant=self.name, ready_until=ros.time_msg(self._next_tick))
-        )
+        assert self._reporter is not None
+        self._reporter.ready(t, ready_until)

@@ -6,10 +6,14 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import pytest
+
 from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import ros
 from mjnav.runtime import Service
 from mjnav.runtime.runner import ServiceRunner
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 STEPS: list[float] = []
 ACTIVATIONS: list[int] = []

@@ -1,4 +1,6 @@
-"""The sim's side of lockstep: sim time advances only when every participant has finished the step that is due.
+"""Lockstep: sim time advances only when every participant has finished the step that is due.
+
+:class:`LockstepBarrier` is the sim's side; :class:`LockstepReporter` a participant's.
 
 Participants are the services that step on sim time (and mission clients): each holds a lockstep token
 (``mjnav/lockstep/<ns>/<name>``) and, after every step, reports on ``<ns>/lockstep/<name>`` the sim time of its next
@@ -7,8 +9,8 @@ step (``ready_until``). The sim may step from t to t + Δ only while every parti
 Why this makes runs repeatable: a participant publishes its outputs before its report, every message has the same
 Zenoh priority and all traffic goes through the router, so by the time the sim has every report for t, every
 message published at steps up to t has reached the router ahead of the sim's next clock. Subscribers commit what
-arrived when that clock arrives (:meth:`mjnav.bus.Bus.commit`): each step sees exactly the messages of earlier sim
-time, whatever the machine's load.
+arrived when that clock arrives (:class:`~mjnav.runtime.simtime.gate.SimTimeGate`): each step sees exactly the
+messages of earlier sim time, whatever the machine's load.
 
 Membership follows the tokens: a participant that appears joins at the next clock the sim publishes; one that
 vanishes (killed) is dropped at once. One that holds its token but reports nothing for ``timeout_s`` of wall time
@@ -24,11 +26,11 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from typing import Any
 
 from mjnav.bus import Bus
-from mjnav.msgs import ros
+from mjnav.msgs import msg_class, ros
 
 #: Sim-time tolerance when comparing a participant's next step with the sim's time (ticks are milliseconds apart).
 _EPS_S = 1e-6
@@ -55,7 +57,10 @@ class LockstepBarrier:
         self._tick_s = 0.0
         self._blocked_since: float | None = None
         self._waiting_at: float | None = None  # the sim time the sim waits to step past (None: not waiting)
+        self._waiting_among: Collection[str] | None = None  # whom it waits for (None: everybody)
         self._last_start_log = time.monotonic()
+        #: Wall seconds :meth:`wait` has waited in total (the barrier's cost in a run's wall time).
+        self.waited_s = 0.0
         bus.subscribe("lockstep", service="*", callback=self._on_report, immediate=True)
         bus.watch_lockstep(self._on_token)
 
@@ -85,7 +90,7 @@ class LockstepBarrier:
                 self._left_out.discard(name)
                 self.log.info("lockstep: %s reports again and rejoins", name)
             # wake the sim only when it may step now: one wake-up per round, not one per report
-            if rejoined or self._waiting_at is None or not self._blocking(self._waiting_at):
+            if rejoined or self._waiting_at is None or not self._blocking(self._waiting_at, self._waiting_among):
                 self._cond.notify_all()
 
     # ------------------------------------------------------------------------------------------- the sim
@@ -115,31 +120,38 @@ class LockstepBarrier:
             self._published = t
             self._tick_s = tick_s
 
-    def blocking(self, t: float) -> list[str]:
-        """Participants whose next step is due at or before sim time ``t`` (the sim must not step past ``t``)."""
+    def blocking(self, t: float, among: Collection[str] | None = None) -> list[str]:
+        """Participants (of ``among``, default all) whose next step is due at or before sim time ``t``: the sim must
+        not step past ``t`` without them."""
         with self._cond:
-            return self._blocking(t)
+            return self._blocking(t, among)
 
-    def _blocking(self, t: float) -> list[str]:
-        return sorted(n for n, r in self._ready.items() if r <= t + _EPS_S and n not in self._left_out)
+    def _blocking(self, t: float, among: Collection[str] | None = None) -> list[str]:
+        return sorted(
+            n
+            for n, r in self._ready.items()
+            if r <= t + _EPS_S and n not in self._left_out and (among is None or n in among)
+        )
 
-    def wait(self, t: float, timeout_s: float) -> bool:
-        """Wait up to ``timeout_s`` wall seconds until the sim may step past ``t``; returns whether it may.
+    def wait(self, t: float, timeout_s: float, among: Collection[str] | None = None) -> bool:
+        """Wait up to ``timeout_s`` wall seconds until every participant (of ``among``, default all; absent ones do
+        not count) has finished its step at ``t``; returns whether they have.
 
         A participant blocking for longer than :attr:`timeout_s` in total is logged and left out.
         """
-        deadline = time.monotonic() + timeout_s
+        start = time.monotonic()
         with self._cond:
-            self._waiting_at = t
+            self._waiting_at, self._waiting_among = t, among
             try:
-                return self._wait(t, deadline)
+                return self._wait(t, start + timeout_s, among)
             finally:
-                self._waiting_at = None
+                self._waiting_at = self._waiting_among = None
+                self.waited_s += time.monotonic() - start
 
-    def _wait(self, t: float, deadline: float) -> bool:
+    def _wait(self, t: float, deadline: float, among: Collection[str] | None) -> bool:
         """:meth:`wait`'s loop (the condition's lock held)."""
         while True:
-            blocking = self._blocking(t)
+            blocking = self._blocking(t, among)
             now = time.monotonic()
             if not blocking:
                 self._blocked_since = None
@@ -161,3 +173,20 @@ class LockstepBarrier:
             if now >= deadline:
                 return False
             self._cond.wait(min(deadline - now, self._blocked_since + self.timeout_s - now))
+
+
+class LockstepReporter:
+    """A participant's part in the barrier: its token (``mjnav/lockstep/<ns>/<name>``, declared here) and a report
+    after every step."""
+
+    def __init__(self, bus: Bus, participant: str) -> None:
+        self._pub = bus.publisher("lockstep", service=participant)
+        self._msg = msg_class("mjnav_msgs/msg/LockstepReady")
+        self.participant = participant
+        bus.declare_lockstep(participant)
+
+    def ready(self, done: float, ready_until: float) -> None:
+        """Report the step at sim time ``done`` finished; the next one is due at ``ready_until``."""
+        self._pub.put(
+            self._msg(header=ros.header(done, ""), participant=self.participant, ready_until=ros.time_msg(ready_until))
+        )
