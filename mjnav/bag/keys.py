@@ -32,7 +32,7 @@ def key_expressions(args: list[str] | None, namespace: str) -> list[str]:
     Raises:
         BagError: an unknown bare topic name or an invalid key expression.
     """
-    import zenoh
+    from mjnav.bus.raw import check_key_expr
 
     try:
         check_namespace(namespace)
@@ -51,8 +51,8 @@ def key_expressions(args: list[str] | None, namespace: str) -> list[str]:
         else:
             expr = arg
         try:
-            zenoh.KeyExpr(expr)
-        except zenoh.ZError as exc:
+            check_key_expr(expr)
+        except ValueError as exc:
             raise BagError(f"invalid key expression {expr!r}: use e.g. robot0/scan or robot0/status/*") from exc
         out.append(expr)
     return out

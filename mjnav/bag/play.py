@@ -19,7 +19,7 @@ from typing import Any
 
 from mjnav.bag.errors import BagError, BagFormatError
 from mjnav.bag.keys import key_for_topic
-from mjnav.bus import Bus, Publisher, wait_until
+from mjnav.bus import Bus, Publisher, key_matcher, wait_until
 from mjnav.msgs import resolve_key
 
 log = logging.getLogger("mjnav.bag")
@@ -49,15 +49,6 @@ class PlayStats:
         return sum(self.messages.values())
 
 
-def _matches(key: str, filters: list[Any] | None) -> bool:
-    if not filters:
-        return True
-    import zenoh
-
-    k = zenoh.KeyExpr(key)
-    return any(f.intersects(k) for f in filters)
-
-
 def play(
     path: str | Path,
     bus: Bus,
@@ -85,13 +76,15 @@ def play(
         BagFormatError: the file is not a readable MCAP file.
         BagError: bad arguments (negative ``rtf``, bad namespace).
     """
-    import zenoh
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
     if not rtf >= 0.0:
         raise BagError(f"rtf must be >= 0 (0 = as fast as possible), got {rtf}")
-    filters = [zenoh.KeyExpr(k) for k in key_expressions] if key_expressions else None
+    try:
+        wanted = key_matcher(key_expressions)
+    except ValueError as exc:
+        raise BagError(str(exc)) from exc
     stop = stop or threading.Event()
     stats = PlayStats()
     publishers: dict[int, Publisher] = {}
@@ -102,7 +95,7 @@ def play(
             if summary is None:
                 raise BagFormatError(f"{path} has no summary section (unfinished recording?); cannot replay it")
             for channel in summary.channels.values():
-                pub = _publisher(bus, channel, summary.schemas.get(channel.schema_id), namespace, filters, stats)
+                pub = _publisher(bus, channel, summary.schemas.get(channel.schema_id), namespace, wanted, stats)
                 if pub is not None:
                     publishers[channel.id] = pub
             if not publishers:
@@ -149,7 +142,7 @@ def _publisher(
     channel: Any,
     schema: Any,
     namespace: str | None,
-    filters: list[Any] | None,
+    wanted: Callable[[str], bool],
     stats: PlayStats,
 ) -> Publisher | None:
     key = channel.metadata.get("zenoh_key") or key_for_topic(channel.topic)
@@ -164,7 +157,7 @@ def _publisher(
     if schema is not None and schema.name != row.msgtype:
         stats.skipped_channels[channel.topic] = f"type {schema.name} is not {row.msgtype}"
         return None
-    if not _matches(key, filters):
+    if not wanted(key):
         stats.skipped_channels[channel.topic] = "filtered out"
         return None
     if namespace is not None and namespace != recorded_ns:

@@ -14,12 +14,15 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import mjnav
 from mjnav.bag.errors import BagError
 from mjnav.bag.keys import topic_for_key
 from mjnav.msgs import codec, message_definition, resolve_key
+
+if TYPE_CHECKING:
+    from mjnav.bus import RawSample
 
 log = logging.getLogger("mjnav.bag")
 
@@ -187,19 +190,21 @@ def record(
     Returns:
         The recording's statistics (the file is finished and closed).
     """
+    from mjnav.bus.raw import undeclare
+
     stop = stop or threading.Event()
     with BagWriter(path, compression=compression) as writer:
 
-        def on_sample(sample: Any) -> None:
-            ok = writer.add(str(sample.key_expr), sample.payload.to_bytes(), encoding=str(sample.encoding))
+        def on_sample(sample: RawSample) -> None:
+            ok = writer.add(sample.key, sample.data(), encoding=sample.encoding)
             if ok and max_messages is not None and writer.stats.total >= max_messages:
                 stop.set()
 
-        subscribers = [bus.session.declare_subscriber(expr, on_sample) for expr in key_expressions]
+        subscribers = [bus.subscribe_raw(expr, on_sample) for expr in key_expressions]
         log.info("recording %s to %s", ", ".join(key_expressions), writer.path)
         try:
             stop.wait(duration_s)  # until the duration passes or someone sets stop
         finally:
             for sub in subscribers:
-                sub.undeclare()
+                undeclare(sub)
         return writer.close()

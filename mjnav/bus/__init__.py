@@ -21,8 +21,10 @@ from mjnav.bus.config import (
     bus_config_from_args,
     load_bus_config,
 )
+from mjnav.bus.raw import BYTES_ENCODING, RawPublisher, RawSample, check_key_expr, key_matcher
 
 __all__ = [
+    "BYTES_ENCODING",
     "DEFAULT_PORT",
     "DEFAULT_ROUTER",
     "Bus",
@@ -33,11 +35,15 @@ __all__ = [
     "NoReply",
     "NotDelivered",
     "Publisher",
+    "RawPublisher",
+    "RawSample",
     "RemoteError",
     "Subscription",
     "add_bus_arguments",
     "bus_config_from_args",
     "cdr_encoding",
+    "check_key_expr",
+    "key_matcher",
     "load_bus_config",
     "wait_until",
 ]

@@ -17,12 +17,13 @@ import uuid
 from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import zenoh
 import zenoh.ext
 
 from mjnav.bus.config import BusConfig
+from mjnav.bus.raw import RawPublisher, RawSample
 from mjnav.msgs import codec
 from mjnav.msgs.topics import (
     DEFAULT_NAMESPACE,
@@ -82,6 +83,16 @@ _SIM_TIME = struct.Struct("<d")
 _TAG_LEN = len(SIM_TIME_TAG) + _SIM_TIME.size
 
 
+class Gate(Protocol):
+    """Staged delivery, as the bus sees it (the runtime implements it: :class:`mjnav.runtime.simtime.SimTimeGate`)."""
+
+    def stage(self, sub: Subscription, key: str, msg: Any, sent_at: float | None) -> None:
+        """Take an accepted sample of ``sub`` (sent at sim time ``sent_at``, None when untagged) to deliver later."""
+
+    def defer(self, action: Callable[[], None]) -> None:
+        """Take an action to run in order with the samples staged around it."""
+
+
 def cdr_encoding(msgtype: str) -> zenoh.Encoding:
     """The Zenoh encoding mjnav puts on its samples: ``application/cdr;<ros type>``."""
     return zenoh.Encoding.APPLICATION_CDR.with_schema(msgtype)
@@ -119,8 +130,9 @@ class _RejectLog:
             self._suppressed[key] = self._suppressed.get(key, 0) + 1
 
 
-def publisher_qos(row: Topic) -> dict[str, Any]:
-    """Zenoh publisher options of a topic: reliable and blocking for every topic, at one priority.
+def publisher_qos(row: Topic | None) -> dict[str, Any]:
+    """Zenoh publisher options of a topic (None: of any key that is not a topic's): reliable and blocking for every
+    topic, at one priority.
 
     Nothing is dropped in transit — a lockstep step must see every message its peers sent before it, a lost
     costmap or clock would change or stall the run — and one priority keeps one publisher's messages in the order
@@ -133,7 +145,7 @@ def publisher_qos(row: Topic) -> dict[str, Any]:
         "congestion_control": zenoh.CongestionControl.BLOCK,
         "reliability": zenoh.Reliability.RELIABLE,
         "priority": zenoh.Priority.DATA,
-        "express": row.express,
+        "express": row is not None and row.express,
     }
 
 
@@ -315,8 +327,9 @@ class Subscription:
             # A resend (its receipt was lost on the way back): confirm again, deliver once.
             self._bus._send_receipt(key, request)
             return
-        if self._bus.staged and not self._immediate:
-            self._bus._stage(self, key, msg, sent_at)
+        gate = self._bus.gate
+        if gate is not None and not self._immediate:
+            gate.stage(self, key, msg, sent_at)
         else:
             self._deliver(key, msg)
         if request:
@@ -457,15 +470,16 @@ class Bus:
     def __init__(self, session: zenoh.Session, namespace: str = DEFAULT_NAMESPACE, *, owns_session: bool = False):
         check_namespace(namespace)
         self.session = session
-        #: Staged delivery (set by sim-time services): accepted messages wait until :meth:`commit`.
-        self.staged = False
-        #: The sim time this bus's owner has reached (None: no sim time): the newest clock it committed (a sim-time
-        #: service) or published (the sim). Every sample it publishes carries it, so a staged subscriber delivers
-        #: the sample only at a later clock (see :meth:`commit`).
+        #: Where accepted samples go before their subscriptions (None: straight there): a sim-time participant's
+        #: staging (:class:`mjnav.runtime.simtime.SimTimeGate`), which holds them until the clock says they are due.
+        #: Subscriptions made ``immediate`` (the clock itself, lockstep reports) bypass it.
+        self.gate: Gate | None = None
+        #: The sim time this bus's owner has reached (None: no sim time), set by the runtime: the newest clock it
+        #: committed (a sim-time service) or published (the sim). Every sample it publishes carries it
+        #: (:data:`SIM_TIME_TAG`), so a staged subscriber delivers the sample only at a later clock.
         self.sim_time: float | None = None
         #: Set by :meth:`close`: samples still arriving are ignored and publishing does nothing.
         self.closing = False
-        self._staging: list[tuple[Subscription | None, str, Any, float | None]] = []
         #: The service this bus belongs to (set by :class:`mjnav.runtime.Service`): it signs delivery receipts.
         self.owner: str | None = None
         self._receipt_pub: Publisher | None = None
@@ -526,10 +540,6 @@ class Bus:
             self.stats.last_rejection = f"{key}: {reason}"
         self._reject_log(key, reason)
 
-    def _stage(self, sub: Subscription, key: str, msg: Any, sent_at: float | None) -> None:
-        with self._lock:
-            self._staging.append((sub, key, msg, sent_at))
-
     def _send_receipt(self, key: str, attachment: bytes) -> None:
         """Answer an event sample that asked for a receipt (only buses that belong to a service sign them)."""
         if self.owner is None or not attachment.startswith(RECEIPT_REQUEST):
@@ -549,47 +559,15 @@ class Bus:
             return self._receipt_pub
 
     def defer(self, action: Callable[[], None]) -> None:
-        """Run ``action`` as if it were a message arriving now: at the next :meth:`commit` when the bus is
-        :attr:`staged` (in order with the messages staged around it), at once otherwise.
-
-        For inputs that do not come through a subscription — a request on an endpoint — so that a sim-time service
-        sees them at a step boundary, in the order they arrived relative to its topics.
-        """
-        with self._lock:
-            if self.staged:
-                self._staging.append((None, "", action, None))
-                return
-        action()
-
-    def commit(self, now: float | None = None) -> None:
-        """Deliver the staged messages, in arrival order, to their subscriptions (and callbacks).
-
-        With :attr:`staged` set, accepted messages are held back until this call. A sim-time service commits when
-        a ``clock`` message arrives (``now``: its time, which becomes :attr:`sim_time`), so a step at that time
-        sees the messages its peers published before the sim advanced to it, and none that peers publish while
-        they step at the same time. Those usually arrive after the clock; but the router forwards clock t to each
-        subscriber in turn, and a peer that got it first may step and publish before this subscriber's copy of
-        the clock goes out (seen under load: a same-seed mission changed). So a message sent at sim time ``now``
-        or later (its :data:`SIM_TIME_TAG`) stays staged for a later commit, whatever the order of arrival.
-        """
-        with self._lock:
-            back = now is not None and self.sim_time is not None and now < self.sim_time  # the sim restarted
-            if now is not None:
-                self.sim_time = now
-            staged = self._staging
-            if now is None or back:  # after a restart, what was sent before it is old, not early: deliver it
-                self._staging = []
-            else:
-                self._staging = [item for item in staged if item[3] is not None and item[3] >= now]
-                staged = [item for item in staged if item[3] is None or item[3] < now]
-        for sub, key, msg, _ in staged:
-            if sub is None:
-                try:
-                    msg()  # a deferred action (see defer)
-                except Exception:
-                    log.exception("deferred action failed")
-            else:
-                sub._deliver(key, msg)
+        """Run ``action`` as if it were a message arriving now: through the :attr:`gate` when there is one (at the
+        clock that commits what arrived around it), at once otherwise. For inputs that come through no subscription
+        — a request on an endpoint — so that a sim-time service sees them at a step boundary, in the order they
+        arrived relative to its topics."""
+        gate = self.gate
+        if gate is not None:
+            gate.defer(action)
+        else:
+            action()
 
     # ----------------------------------------------------------------------------------------- pub/sub by name
 
@@ -619,7 +597,7 @@ class Bus:
             name: topic name from the table.
             callback: optional function called (in Zenoh's thread) with each accepted message.
             service: the service of a per-service topic (``"*"`` for all).
-            immediate: deliver at once even when the bus is :attr:`staged` (the clock itself, barrier reports).
+            immediate: deliver at once even when the bus has a :attr:`gate` (the clock itself, barrier reports).
             lossy: for observers outside the lockstep loop (the viewer): never hold publishers back, at the price of
                 messages dropped while the reader falls behind (see :class:`Subscription`); no ``callback``.
         """
@@ -629,6 +607,65 @@ class Bus:
         sub = Subscription(self, row, row.key(self.namespace, service), callback, immediate, lossy)
         self._declared.append(sub)
         return sub
+
+    # ----------------------------------------------------------------------------------- raw bytes on any key
+
+    def subscribe_raw(self, key_expr: str, callback: Callable[[RawSample], None], *, remote_only: bool = False) -> Any:
+        """Call ``callback`` (in Zenoh's thread) with every sample on ``key_expr``, undecoded (relays, recorders).
+
+        An exception in ``callback`` is logged and the sample dropped. ``remote_only``: ignore what this session
+        publishes itself (a relay between two keys must not hear its own output). Undeclared with the bus; call
+        ``undeclare()`` on the result to stop earlier.
+        """
+
+        def handler(sample: zenoh.Sample) -> None:
+            if not getattr(_network_thread, "adopted", False):
+                _adopt_network_thread()
+            if self.closing:
+                return
+            try:
+                callback(RawSample(sample))
+            except Exception:
+                log.exception("raw subscriber on %s failed on a sample of %s", key_expr, sample.key_expr)
+
+        origin = zenoh.Locality.REMOTE if remote_only else zenoh.Locality.ANY
+        sub = self.session.declare_subscriber(key_expr, handler, allowed_origin=origin)
+        self._declared.append(sub)
+        return sub
+
+    def publisher_raw(
+        self, key: str, *, encoding: str, row: Topic | None = None, remote_only: bool = False
+    ) -> RawPublisher:
+        """A publisher of raw payloads on ``key`` with ``encoding``, with the QoS of topic ``row`` (every topic's
+        when None). ``remote_only``: not delivered to this session's own subscribers."""
+        qos = publisher_qos(row)
+        destination = zenoh.Locality.REMOTE if remote_only else zenoh.Locality.ANY
+        pub = self.session.declare_publisher(
+            key, encoding=zenoh.Encoding(encoding), allowed_destination=destination, **qos
+        )
+        self._declared.append(pub)
+        return RawPublisher(pub, key)
+
+    def declare_token(self, key: str) -> Any:
+        """Declare the liveliness token ``key`` (any key: a ROS 2 graph entity's); it vanishes with the bus."""
+        token = self.session.liveliness().declare_token(key)
+        self._declared.append(token)
+        return token
+
+    def sharing(self) -> Bus:
+        """Another bus on this one's session and namespace, with its own subscriptions, gate, counters and receipts
+        (a service of a container); closing it leaves the session open."""
+        return Bus(self.session, self.namespace)
+
+    def connected(self) -> bool:
+        """Whether the session is linked to a router or a peer now."""
+        info = self.session.info
+        return bool(list(info.routers_zid()) or list(info.peers_zid()))
+
+    @property
+    def session_id(self) -> str:
+        """The Zenoh session's id (hex)."""
+        return str(self.session.info.zid())
 
     def put_confirmed(
         self, name: str, msgs: list[Any], *, timeout_s: float = 5.0, period_s: float = 0.0

@@ -118,6 +118,10 @@ class BusConfig:
         # that opens many: tests, benchmarks) and that a killed process leaves in /dev/shm; it bought no measurable
         # speed here (interleaved maze runs). Loopback TCP carries everything.
         cfg.insert_json5("transport/shared_memory/enabled", "false")
+        if self.mode == "router" and not self.connect and not self.multicast_scouting:
+            # Zenoh holds open() back for its scouting delay (500 ms) to discover peers first; a router that
+            # connects nowhere and does not scout has none to discover.
+            cfg.insert_json5("scouting/delay", "0")
         if self.mode != "router":
             if self.connect_timeout_s is None:
                 # Keep retrying the router instead of failing when a service starts before it.

@@ -81,8 +81,7 @@ def open_connected(args: argparse.Namespace, namespace: str) -> Any:
 
     config = bus_config_from_args(args)
     bus = Bus.open(config, namespace)
-    info = bus.session.info
-    if config.mode != "router" and not list(info.routers_zid()) and not list(info.peers_zid()):
+    if config.mode != "router" and not bus.connected():
         bus.close()
         raise BusUnavailable(f"no Zenoh router reachable at {', '.join(config.connect)} (is `mjnav up` running?)")
     return bus
@@ -126,7 +125,7 @@ def run_topics(args: argparse.Namespace) -> int:
     lock = threading.Lock()
 
     def on_sample(sample: Any) -> None:
-        key = str(sample.key_expr)
+        key = sample.key
         now = time.monotonic()
         with lock:
             counts[key] = counts.get(key, 0) + 1
@@ -147,7 +146,7 @@ def run_topics(args: argparse.Namespace) -> int:
         print(f"mjnav topics: {exc}", file=sys.stderr)
         return 1
     with bus:
-        sub = bus.session.declare_subscriber("**", on_sample)
+        sub = bus.subscribe_raw("**", on_sample)
         bus.watch_alive(on_alive)  # tokens already up arrive during the window too, however slow the router is
         time.sleep(args.duration)  # listening window, not synchronisation
         sub.undeclare()

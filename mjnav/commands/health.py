@@ -64,8 +64,7 @@ def run(args: argparse.Namespace) -> int:
     deadline = time.monotonic() + args.timeout
     problems: list[str] = []
     with bus:
-        info = bus.session.info
-        if not wait_until(lambda: bool(info.routers_zid() or info.peers_zid()), args.timeout, 0.05):
+        if not wait_until(bus.connected, args.timeout, 0.05):
             print(f"unhealthy: no Zenoh router or peer reachable at {', '.join(config.connect)}", file=sys.stderr)
             return 1
         status_sub = bus.subscribe("status", service="*") if args.status else None

@@ -16,9 +16,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-import zenoh
-
-from mjnav.bus.bus import cdr_encoding
+from mjnav.bus import BYTES_ENCODING, RawSample, cdr_encoding
+from mjnav.bus.raw import undeclare
 from mjnav.msgs import message_definition
 from mjnav.msgs.topics import TOPICS, Topic
 from mjnav.runtime import Service
@@ -68,18 +67,17 @@ class _Relay:
 
     def __init__(self, channel: Any, row: Topic) -> None:
         self.channel = channel
-        self.encoding = cdr_encoding(row.msgtype)
+        self.encoding = str(cdr_encoding(row.msgtype))
         self.sent = 0
         self.dropped = 0
 
-    def on_sample(self, sample: zenoh.Sample) -> None:
+    def on_sample(self, sample: RawSample) -> None:
         if not self.channel.has_sinks():  # no client subscribed: nothing to do
             return
-        encoding = sample.encoding
-        if encoding != self.encoding and encoding != zenoh.Encoding.ZENOH_BYTES:
+        if sample.encoding not in (self.encoding, BYTES_ENCODING):
             self.dropped += 1
             return
-        self.channel.log(sample.payload.to_bytes(), log_time=time.time_ns())
+        self.channel.log(sample.data(), log_time=time.time_ns())
         self.sent += 1
 
 
@@ -106,7 +104,7 @@ class FoxgloveService(Service[FoxgloveConfig]):
             )
             channel = foxglove.Channel(f"/{ns}/{row.name}", schema=schema, message_encoding="cdr", context=self.context)
             relay = self.relays[row.name] = _Relay(channel, row)
-            self._subs.append(self.bus.session.declare_subscriber(row.key(ns), relay.on_sample))
+            self._subs.append(self.bus.subscribe_raw(row.key(ns), relay.on_sample))
         self.log.info("Foxglove WebSocket server on ws://%s:%d, %d topics", cfg.host, self.port, len(self.relays))
 
     def step(self, now: float) -> None:
@@ -114,10 +112,7 @@ class FoxgloveService(Service[FoxgloveConfig]):
 
     def deactivate(self) -> None:
         for sub in self._subs:
-            try:
-                sub.undeclare()
-            except zenoh.ZError as exc:  # the session may be closing
-                self.log.debug("undeclare failed: %s", exc)
+            undeclare(sub)
         self._subs.clear()
         self.server.stop()
         sent = sum(r.sent for r in self.relays.values())

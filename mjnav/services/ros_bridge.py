@@ -24,9 +24,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-import zenoh
-
-from mjnav.bus.bus import cdr_encoding, publisher_qos
+from mjnav.bus import RawSample, cdr_encoding
+from mjnav.bus.raw import undeclare
 from mjnav.msgs import rmw_zenoh
 from mjnav.msgs.topics import OPERATOR, PUBLISH_RIGHTS, TOPICS, Topic
 from mjnav.runtime import Service
@@ -92,7 +91,7 @@ class _Outbound:
         self._pub: Any = None
         self._lock = threading.Lock()
 
-    def on_sample(self, sample: zenoh.Sample) -> None:
+    def on_sample(self, sample: RawSample) -> None:
         with self._lock:
             if self._bridge.bus.closing:
                 return
@@ -114,8 +113,7 @@ class RosBridgeService(Service[RosBridgeConfig]):
     def configure(self) -> None:
         cfg = self.config
         self.domain = cfg.resolved_domain()
-        session = self.bus.session
-        self.session_id = str(session.info.zid())
+        self.session_id = self.bus.session_id
         ns = self.bus.namespace
         self._lock = threading.Lock()
         self._nodes: dict[str, int] = {}
@@ -125,10 +123,7 @@ class RosBridgeService(Service[RosBridgeConfig]):
         outbound = cfg.outbound or tuple(name for name, row in TOPICS.items() if not row.per_service)
         for name in outbound:
             relay = _Outbound(self, TOPICS[name])
-            sub = session.declare_subscriber(
-                TOPICS[name].key(ns), relay.on_sample, allowed_origin=zenoh.Locality.REMOTE
-            )
-            self._declared.append(sub)
+            self._declared.append(self.bus.subscribe_raw(TOPICS[name].key(ns), relay.on_sample, remote_only=True))
         for name in cfg.inbound:
             self._declare_inbound(TOPICS[name])
         self.log.info(
@@ -140,7 +135,7 @@ class RosBridgeService(Service[RosBridgeConfig]):
         )
 
     def _token(self, key: str) -> None:
-        self._declared.append(self.bus.session.liveliness().declare_token(key))
+        self._declared.append(self.bus.declare_token(key))
 
     def _node(self, node: str) -> int:
         """The id of ROS 2 node ``/<ns>/<node>``, declaring its token the first time (call with the lock held)."""
@@ -161,29 +156,22 @@ class RosBridgeService(Service[RosBridgeConfig]):
 
     def declare_outbound(self, row: Topic, key: str) -> Any:
         """Declare the rmw_zenoh publisher of ``row`` and its token, under the node of the topic's publisher."""
-        pub = self.bus.session.declare_publisher(
-            key,
-            encoding=zenoh.Encoding.APPLICATION_CDR,
-            allowed_destination=zenoh.Locality.REMOTE,
-            **publisher_qos(row),
-        )
+        pub = self.bus.publisher_raw(key, encoding="application/cdr", row=row, remote_only=True)
         self._declared.append(pub)
         self._endpoint("MP", row.publisher.split(",")[0].strip(), row)
         return pub
 
     def _declare_inbound(self, row: Topic) -> None:
         ns = self.bus.namespace
-        pub = self.bus.session.declare_publisher(row.key(ns), encoding=cdr_encoding(row.msgtype), **publisher_qos(row))
+        pub = self.bus.publisher_raw(row.key(ns), encoding=str(cdr_encoding(row.msgtype)), row=row)
         self._declared.append(pub)
 
-        def on_sample(sample: zenoh.Sample) -> None:
-            if self.bus.closing:
-                return
+        def on_sample(sample: RawSample) -> None:
             self.count("in")
             pub.put(sample.payload)
 
         key = rmw_zenoh.data_key(self.domain, row, ns)
-        self._declared.append(self.bus.session.declare_subscriber(key, on_sample, allowed_origin=zenoh.Locality.REMOTE))
+        self._declared.append(self.bus.subscribe_raw(key, on_sample, remote_only=True))
         self._endpoint("MS", self.name, row)
 
     def count(self, direction: str) -> None:
@@ -196,9 +184,6 @@ class RosBridgeService(Service[RosBridgeConfig]):
 
     def deactivate(self) -> None:
         for entity in reversed(self._declared):
-            try:
-                entity.undeclare()
-            except zenoh.ZError as exc:  # the session may be closing
-                self.log.debug("undeclare failed: %s", exc)
+            undeclare(entity)
         self._declared.clear()
         self.log.info("relayed %d messages to ROS 2, %d from ROS 2", self.counts["out"], self.counts["in"])

@@ -125,6 +125,7 @@ def _synthetic_bag(path: Path, span_s: float = 1.0, n: int = 11) -> int:
     return n + 1
 
 
+@pytest.mark.e2e
 def test_play_republishes_at_the_recorded_times(router_endpoint: str, peer: Peer, tmp_path: Path) -> None:
     bag = tmp_path / "synthetic.mcap"
     total = _synthetic_bag(bag, span_s=1.0)
@@ -142,6 +143,7 @@ def test_play_republishes_at_the_recorded_times(router_endpoint: str, peer: Peer
     assert got is not None and got.pose.position.x == 1.0
 
 
+@pytest.mark.e2e
 def test_play_moves_the_namespace_and_filters_keys(peer: Peer, tmp_path: Path) -> None:
     bag = tmp_path / "synthetic.mcap"
     _synthetic_bag(bag, span_s=0.2)
@@ -159,6 +161,7 @@ def test_play_moves_the_namespace_and_filters_keys(peer: Peer, tmp_path: Path) -
     assert goals.latest() is None
 
 
+@pytest.mark.e2e
 def test_bag_info_and_cli_errors(tmp_path: Path) -> None:
     bag = tmp_path / "synthetic.mcap"
     total = _synthetic_bag(bag)

@@ -189,6 +189,7 @@ def test_readme_rights_table_is_generated_from_the_table() -> None:
     assert m.group(1) == rights_markdown(), "README rights table is stale: paste mjnav.bus.acl.rights_markdown()"
 
 
+@pytest.mark.e2e
 def test_a_client_without_a_valid_certificate_cannot_connect(certs: Path, secure_router: str, tmp_path: Path) -> None:
     files = tls_files(certs, OPERATOR)
     # TLS, the right CA, but no client certificate: the router asks for one (mutual TLS).
@@ -294,6 +295,7 @@ def test_forged_tokens_and_endpoints_are_refused(client: Callable[[str], Bus]) -
         client(INTRUDER).call("save_map", timeout_s=1.0)
 
 
+@pytest.mark.e2e
 def test_fuzz_valid_but_forged_messages_from_unauthorised_identities_never_arrive(
     client: Callable[[str], Bus],
 ) -> None:

@@ -30,6 +30,7 @@ def test_snapshot_topic_delivers_decoded_messages_and_keeps_the_newest(peer: Pee
     assert b.stats.rejected == 0 and a.stats.published == 20
 
 
+@pytest.mark.e2e
 def test_event_topic_keeps_every_message_in_order(peer: Peer) -> None:
     a, b = peer(), peer()
     sub = b.subscribe("goal")
@@ -43,6 +44,7 @@ def test_event_topic_keeps_every_message_in_order(peer: Peer) -> None:
     assert sub.drain() == []
 
 
+@pytest.mark.e2e
 def test_bad_payloads_are_counted_and_logged_never_raised(peer: Peer, caplog: pytest.LogCaptureFixture) -> None:
     a, b = peer(), peer()
     sub = b.subscribe("cmd_vel")
@@ -66,6 +68,7 @@ def test_bad_payloads_are_counted_and_logged_never_raised(peer: Peer, caplog: py
     assert "wrong encoding" in text and "encapsulation" in text
 
 
+@pytest.mark.e2e
 def test_wildcard_subscription_keeps_the_newest_per_key(peer: Peer) -> None:
     a, b = peer(), peer()
     sub = b.subscribe("status", service="*")
@@ -83,6 +86,7 @@ def test_wildcard_subscription_keeps_the_newest_per_key(peer: Peer) -> None:
     assert by_key[b.key("status", "planner")].service == "planner"
 
 
+@pytest.mark.e2e
 def test_request_reply(peer: Peer) -> None:
     server, client = peer(), peer()
     string = msg_class("std_msgs/msg/String")
@@ -135,37 +139,7 @@ def test_namespaces_do_not_mix(peer: Peer) -> None:
     assert [m.pose.position.x for m in sub1.drain()] == [1.0]
 
 
-def test_a_staged_bus_delivers_a_message_only_at_a_clock_after_it_was_sent(peer: Peer) -> None:
-    """A peer's output of its step at t reaches a subscriber before that subscriber's copy of clock t, sometimes
-    (the router forwards the clock to each subscriber in turn): it must not be seen by the step at t."""
-    a, b = peer(), peer()
-    b.staged = True
-    twist = b.subscribe("cmd_vel")
-    marker = b.subscribe("goal", immediate=True)  # sent after each twist on the same link: the twist is in
-    pub, mark = a.publisher("cmd_vel"), a.publisher("goal")
-    assert pub.wait_for_subscribers(5.0) and mark.wait_for_subscribers(5.0)
-
-    def send(v: float, sim_time: float | None) -> None:
-        a.sim_time = sim_time
-        count = marker.count
-        pub.put(ros.twist(v, 0.0))
-        mark.put(ros.pose_stamped(0.0, "map", Pose2D(0.0, 0.0, 0.0)))
-        assert wait_until(lambda: marker.count > count, 5.0)
-
-    send(0.3, 1.0)  # sent by a peer stepping at t = 1.0
-    b.commit(1.0)
-    assert twist.take() is None  # not for the step at 1.0 ...
-    b.commit(1.05)
-    assert twist.take().linear.x == 0.3  # ... but for the next one
-    assert b.sim_time == 1.05
-    send(0.4, None)  # no sim time (an operator's command): at the next clock
-    b.commit(1.1)
-    assert twist.take().linear.x == 0.4
-    send(0.5, 7.0)  # sent before the sim restarted (the clock went back): old, not early
-    b.commit(0.0)
-    assert twist.take().linear.x == 0.5
-
-
+@pytest.mark.e2e
 def test_a_network_thread_keeps_its_python_state_between_messages(peer: Peer) -> None:
     """Callbacks run in Zenoh's own threads; entering Python there made and deleted a thread state per message (a
     16 KB frame stack mapped and unmapped each time). Kept, a thread's state (and so its thread-local data)

@@ -69,6 +69,7 @@ def test_bad_input_is_a_typed_error_and_writes_nothing(
     assert not any(f.exists() for f in certificate_files(tmp_path / "out", names))
 
 
+@pytest.mark.e2e
 def test_cli_writes_one_certificate_per_stack_service_and_the_operator(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -11,9 +11,12 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import pytest
 
 from mjnav.bus import Bus
 from mjnav.msgs import msg_class, ros
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 #: Scans published while the observer reads nothing: 64 MB, far more than the socket and Zenoh buffers hold.
 COUNT = 4000

@@ -8,6 +8,8 @@ import sys
 import threading
 from collections.abc import Callable
 
+import pytest
+
 from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
 from mjnav.msgs import ros
@@ -20,6 +22,7 @@ def _mjnav(*args: str) -> subprocess.Popen[str]:
     )
 
 
+@pytest.mark.e2e
 def test_echo_prints_decoded_messages_as_json_lines(peer: Callable[..., Bus], router_endpoint: str) -> None:
     proc = _mjnav("echo", "robot0/goal", "--count", "2", "--connect", router_endpoint, "--timeout", "60")
     me = peer()
@@ -34,6 +37,7 @@ def test_echo_prints_decoded_messages_as_json_lines(peer: Callable[..., Bus], ro
     assert lines[1]["header"] == {"stamp": {"sec": 2, "nanosec": 500_000_000}, "frame_id": "map"}
 
 
+@pytest.mark.e2e
 def test_echo_times_out_with_exit_code_1(router_endpoint: str) -> None:
     proc = _mjnav("echo", "robot0/scan", "--connect", router_endpoint, "--timeout", "1")
     _, err = proc.communicate(timeout=60)
@@ -46,6 +50,7 @@ def test_echo_rejects_unknown_keys() -> None:
     assert proc.returncode == 2 and "matches no topic" in err
 
 
+@pytest.mark.e2e
 def test_topics_lists_live_keys_with_type_and_rate(peer: Callable[..., Bus], router_endpoint: str) -> None:
     me = peer()
     me.declare_alive("tester")
@@ -73,6 +78,7 @@ def test_topics_lists_live_keys_with_type_and_rate(peer: Callable[..., Bus], rou
     assert report["services_alive"] == ["tester"]
 
 
+@pytest.mark.e2e
 def test_echo_stops_quietly_when_its_reader_goes_away(peer: Callable[..., Bus], router_endpoint: str) -> None:
     proc = _mjnav("echo", "robot0/cmd_vel", "--connect", router_endpoint)
     me = peer()

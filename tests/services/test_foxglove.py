@@ -96,6 +96,7 @@ def foxglove_service(peer: Callable[..., Bus]) -> Iterator[FoxgloveService]:
     service.deactivate()
 
 
+@pytest.mark.e2e
 def test_channels_carry_ros2_schemas_and_messages_decode_to_what_was_published(
     foxglove_service: FoxgloveService, peer: Callable[..., Bus]
 ) -> None:
@@ -129,6 +130,7 @@ def test_channels_carry_ros2_schemas_and_messages_decode_to_what_was_published(
         assert wait_until(lambda: foxglove_service.relays["cmd_vel"].dropped == 1, 5.0)
 
 
+@pytest.mark.e2e
 def test_every_topic_but_the_per_service_ones_is_streamed(foxglove_service: FoxgloveService) -> None:
     assert set(foxglove_service.relays) == {name for name, row in TOPICS.items() if not row.per_service}
 
@@ -151,6 +153,7 @@ def test_the_layout_shows_topics_the_service_streams() -> None:
     assert load_stack().get("foxglove").config_file == Path(services_dir() / "foxglove.toml")
 
 
+@pytest.mark.e2e
 def test_a_live_lockstep_stack_streams_scan_map_and_tf() -> None:
     port = free_port()
     start = world_info("rooms").start  # where SLAM starts (else it waits for an initialpose)

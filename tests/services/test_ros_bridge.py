@@ -64,6 +64,7 @@ def ros_client(router_endpoint: str) -> Iterator[dict[str, Any]]:
         yield kwargs
 
 
+@pytest.mark.e2e
 def test_a_ros2_subscriber_receives_the_stacks_scan_and_lists_the_topic(
     bridge: RosBridgeService, ros_client: dict[str, Any], peer: Callable[..., Bus]
 ) -> None:
@@ -109,6 +110,7 @@ def test_a_ros2_subscriber_receives_the_stacks_scan_and_lists_the_topic(
         sub.close()
 
 
+@pytest.mark.e2e
 def test_the_bridge_puts_rmw_zenoh_attachments_on_what_it_relays(
     bridge: RosBridgeService, peer: Callable[..., Bus]
 ) -> None:
@@ -167,6 +169,7 @@ def test_a_ros2_node_drives_the_robot_and_sends_a_goal(
         goal_pub.close()
 
 
+@pytest.mark.e2e
 def test_nothing_loops_between_the_two_sides(bridge: RosBridgeService, peer: Callable[..., Bus]) -> None:
     """The stack's own cmd_vel goes out once per message and is never taken for a ROS 2 command coming in (the
     bridge's own rmw_zenoh samples are local to its session, which its inbound subscription does not accept)."""
@@ -210,6 +213,7 @@ def test_bad_bridge_settings_are_refused(fields: dict[str, Any], match: str) -> 
         RosBridgeConfig(**fields)
 
 
+@pytest.mark.e2e
 def test_mjnav_up_ros_rmw_zenoh_a_ros2_node_drives_the_simulated_robot() -> None:
     """The whole path: `mjnav up --ros rmw_zenoh` with the sim; a ROS 2 node (the independent client) reads the
     clock and odometry and publishes cmd_vel on domain 0, and the simulated robot moves."""
