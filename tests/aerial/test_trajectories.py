@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mjnav.runtime.flight import figure8_plan, hover_plan, waypoints_plan
+from mjnav.aerial.trajectories import figure8_plan, hover_plan, waypoints_plan
 
 PAD = np.array([0.0, 0.0, 0.062])
 
