@@ -6,6 +6,10 @@ in worlds with moving bodies, ``obstacles`` (their true poses), all stamped in s
 from the newest ``cmd_vel``. The simulator's own watchdog zeroes the wheels when that command is older than
 ``watchdog_timeout_s`` of sim time.
 
+Actuation: the wheels take the newest command ``actuation_delay_s`` after each clock tick (10 ms by default), and
+only then: what the controller computed on clock t drives the wheels from t + ``actuation_delay_s`` on, whatever
+the sensors' rates (a motor driver reading its command once per control period).
+
 The robot's facts come from its model, and the sim is their one source on the bus: before sim time starts it
 latches the robot's MJCF on ``robot_description`` (flattened, :mod:`mjnav.sim.description`) and ``base_link`` →
 each sensor frame on ``tf_static``, as ROS's robot_state_publisher does. Placing the robot at the world's start is
@@ -19,14 +23,17 @@ long. Without teleop traffic nothing changes, so lockstep runs stay repeatable.
 
 Time: the service steps on wall time (it *is* the clock). In **lockstep** (the default) sim time advances one clock
 tick at a time, and only when every participant — each service on sim time, and mission clients — has finished
-the step that is due (:class:`~mjnav.runtime.lockstep.LockstepBarrier`); time starts once the participants named in
+the step that is due (:class:`~mjnav.runtime.simtime.LockstepBarrier`); time starts once the participants named in
 ``lockstep_participants`` are present. ``rtf`` caps the pace (at most rtf × wall time; ``0`` = as fast as the
 participants allow), so a run gives the same result on a busy machine as on an idle one. **Free-running**
 (``lockstep = false``) advances to ``rtf × wall time since activation`` whatever the others do, like hardware.
+Both are paced by :class:`~mjnav.runtime.simtime.Pacer`; every periodic publication is a
+:class:`~mjnav.runtime.simtime.Schedule`.
 """
 
 from __future__ import annotations
 
+import enum
 import logging
 import math
 import time
@@ -39,9 +46,10 @@ import numpy as np
 from mjnav.bus import Bus, Publisher
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
+from mjnav.msgs.topics import PUBLISH_RIGHTS
 from mjnav.robot import RobotDescription
 from mjnav.runtime import Service
-from mjnav.runtime.lockstep import LockstepBarrier
+from mjnav.runtime.simtime import LockstepBarrier, Pacer, Schedule
 
 if TYPE_CHECKING:
     from mjnav.sim import SimRunner
@@ -71,6 +79,10 @@ class SimConfig:
         imu_rate_hz: ``imu`` per sim second.
         obstacles_rate_hz: ``obstacles`` (true poses of the world's moving bodies) per sim second; worlds without
             moving bodies publish none.
+        actuation_delay_s: sim seconds from a clock tick to the moment the wheels take the newest command (a whole
+            number of physics steps, > 0 and at most one clock period): the command a controller computed on clock
+            t drives the wheels from t + actuation_delay_s until the next tick's. Commands are taken at that one
+            moment per clock period, whatever the publishing rates.
         watchdog_timeout_s: zero the wheels when the newest command is this old (sim seconds).
         teleop_timeout_s: ``cmd_vel_teleop`` overrides ``cmd_vel`` until it has been silent this long (sim seconds).
         record_path: write an MP4 of the run here ("" = no recording).
@@ -101,6 +113,7 @@ class SimConfig:
     odom_rate_hz: float = 20.0
     imu_rate_hz: float = 100.0
     obstacles_rate_hz: float = 10.0
+    actuation_delay_s: float = 0.01
     watchdog_timeout_s: float = 0.5
     teleop_timeout_s: float = 0.5
     record_path: str = ""
@@ -126,6 +139,7 @@ class SimConfig:
             "odom_rate_hz",
             "imu_rate_hz",
             "obstacles_rate_hz",
+            "actuation_delay_s",
             "watchdog_timeout_s",
             "teleop_timeout_s",
             "record_fps",
@@ -142,6 +156,11 @@ class SimConfig:
                 f"the fastest publishing rate ({fastest:g} Hz, of odom_rate_hz, imu_rate_hz and obstacles_rate_hz) "
                 f"must be a whole multiple of clock_rate_hz ({self.clock_rate_hz:g} Hz)"
             )
+        if self.actuation_delay_s > 1.0 / self.clock_rate_hz + 1e-9:
+            raise ValueError(
+                f"actuation_delay_s ({self.actuation_delay_s:g} s) must be at most one clock period "
+                f"({1.0 / self.clock_rate_hz:g} s): the wheels take one command per clock tick"
+            )
         if self.record_camera not in ("top", "follow"):
             raise ValueError(f"record_camera must be 'top' or 'follow', got {self.record_camera!r}")
         from mjnav.sim.errors import UnknownWorldError
@@ -153,22 +172,12 @@ class SimConfig:
             raise ValueError(str(exc)) from exc
 
 
-class _Every:
-    """A sim-time schedule: due at 0, p, 2p, … (computed from the tick count, so no drift)."""
+class _Round(enum.Enum):
+    """Where the lockstep loop is within a round (see :meth:`SimService._step_lockstep`)."""
 
-    def __init__(self, rate_hz: float) -> None:
-        self.period = 1.0 / rate_hz
-        self.count = 0
-
-    @property
-    def next_t(self) -> float:
-        return self.count * self.period
-
-    def due(self, t: float) -> bool:
-        if t + 1e-9 >= self.next_t:
-            self.count = math.floor((t + 1e-9) / self.period) + 1
-            return True
-        return False
+    IDLE = 0  # clock t is out; the physics has not stepped past t
+    ACTUATING = 1  # stepped to the moment the robot takes the command of step t
+    HELD = 2  # stepped to t + tick, its clock held until every participant finished step t
 
 
 class SimStepping(Protocol):
@@ -178,6 +187,8 @@ class SimStepping(Protocol):
     #: Wall time (``time.monotonic``) from which the published real-time factor counts; the loop resets it when
     #: lockstep time starts.
     wall0: float
+    #: The sim's lockstep barrier (None: free-running), whose waiting time ``sim_status`` reports.
+    barrier: LockstepBarrier | None
 
     @property
     def time_s(self) -> float:
@@ -189,9 +200,23 @@ class SimStepping(Protocol):
         """Sim seconds between two ``clock`` messages (one lockstep round)."""
         ...
 
-    def advance(self, target_s: float, deadline: float | None = None) -> None:
+    #: Topics whose commands drive the simulated robot: their publishers (``PUBLISH_RIGHTS``) are the participants
+    #: the physics waits for, within a lockstep round, before it takes a new command.
+    command_topics: tuple[str, ...]
+
+    def free_until_s(self, clock_s: float) -> float:
+        """How far the physics may step after clock ``clock_s`` before the first new command is taken (no later
+        than ``clock_s`` when a command is taken at the clock itself)."""
+        ...
+
+    def advance(self, target_s: float, deadline: float | None = None, *, hold_clock: bool = False) -> None:
         """Step to sim time ``target_s``, publishing what falls due (the clock last); stop early at the
-        ``time.perf_counter`` ``deadline``."""
+        ``time.perf_counter`` ``deadline``. ``hold_clock``: keep the clock due at ``target_s`` for
+        :meth:`release_clock`."""
+        ...
+
+    def release_clock(self) -> None:
+        """Publish the clock the last :meth:`advance` held (nothing when it held none)."""
         ...
 
 
@@ -216,31 +241,38 @@ class SimBridge:
         self._spawn = bus.publisher("initialpose") if config.announce_spawn else None
         # Only worlds with moving bodies (the warehouse's carts) declare the topic.
         self._obstacles = bus.publisher("obstacles") if sim.moving_body_names else None
-        self._obstacles_due = _Every(config.obstacles_rate_hz)
-        self._clock = _Every(config.clock_rate_hz)
-        self._odom = _Every(config.odom_rate_hz)
-        self._imu = _Every(config.imu_rate_hz)
-        self._status = _Every(SIM_STATUS_RATE_HZ)
+        self._obstacles_due = Schedule.every(config.obstacles_rate_hz)
+        self._clock = Schedule.every(config.clock_rate_hz)
+        self._odom = Schedule.every(config.odom_rate_hz)
+        self._imu = Schedule.every(config.imu_rate_hz)
+        self._status = Schedule.every(SIM_STATUS_RATE_HZ)
         self._sim_status = msg_class("mjnav_msgs/msg/SimStatus")
         self.wall0 = time.monotonic()
+        #: The sim's lockstep barrier (None: free-running), whose waiting time ``sim_status`` reports.
+        self.barrier: LockstepBarrier | None = None
         lidar = sim.lidar_config
         self._scan_time_s = 1.0 / lidar.rate_hz if lidar is not None else math.inf
         self.commands_applied = 0
+        self.command_topics: tuple[str, ...] = ("cmd_vel",)
+        self._hold_clock = False
+        self._held_clock: float | None = None
 
     @property
     def tick_s(self) -> float:
         """Sim-time period at which :meth:`publish_due` must be called: the shortest publishing period (messages
         of slower schedules go out at the first call at or after their due time)."""
         schedules = [self._clock, self._odom, self._imu] + ([self._obstacles_due] if self._obstacles else [])
-        return min(e.period for e in schedules)
+        return min(e.period_s for e in schedules)
 
     def attach(self, runner: SimRunner) -> None:
-        """Make :meth:`publish_due` a hook of ``runner`` (every :attr:`tick_s`); :meth:`advance` then steps it.
+        """Make :meth:`apply_command` a hook of ``runner`` (``actuation_delay_s`` after every clock tick) and
+        :meth:`publish_due` another (every :attr:`tick_s`); :meth:`advance` then steps them.
 
         Raises:
-            ValueError: the clock period is not a whole number of physics steps or of hook ticks: a clock would go
-                out late or never (40 Hz on 2 ms steps is 12.5 steps). The runner rounds each tick to a step, so a
-                tick need not be whole steps itself: the clock's ticks fall on whole steps.
+            ValueError: the clock period or the actuation delay is not a whole number of physics steps, or the
+                clock period not one of hook ticks: a clock would go out late or never (40 Hz on 2 ms steps is
+                12.5 steps), a command would drive the wheels later than said. The runner rounds each tick to a
+                step, so a tick need not be whole steps itself: the clock's ticks fall on whole steps.
         """
         dt = self.sim.timestep_s
         tick_steps = max(1.0, self.tick_s / dt)  # faster schedules run at every step
@@ -254,7 +286,13 @@ class SimBridge:
                 f"the clock's period ({1e3 * self.clock_period_s:g} ms) must be a whole number of {dt * 1e3:g} ms "
                 f"physics steps and of the fastest publishing rate's ticks ({1.0 / self.tick_s:g} Hz)"
             )
+        delay = self.config.actuation_delay_s
+        if not whole(delay / dt):
+            raise ValueError(
+                f"actuation_delay_s ({1e3 * delay:g} ms) must be a whole number of {dt * 1e3:g} ms physics steps"
+            )
         runner.add_hook(lambda sim: self.publish_due(sim.time_s), self.tick_s)
+        runner.add_hook(lambda sim: self.apply_command(sim.time_s), self.clock_period_s, offset_s=delay)
         self._runner = runner
 
     @property
@@ -262,18 +300,38 @@ class SimBridge:
         """Sim time now, s."""
         return float(self.sim.time_s)
 
-    def advance(self, target_s: float, deadline: float | None = None) -> None:
-        """Step the attached runner to ``target_s`` (see :meth:`mjnav.sim.SimRunner.advance`)."""
-        self._runner.advance(target_s, deadline)
+    def free_until_s(self, clock_s: float) -> float:
+        """The physics step before the wheels take the command of clock ``clock_s`` (``actuation_delay_s`` later)."""
+        return clock_s + self.config.actuation_delay_s - self.sim.timestep_s
+
+    def advance(self, target_s: float, deadline: float | None = None, *, hold_clock: bool = False) -> None:
+        """Step the attached runner to ``target_s`` (see :meth:`mjnav.sim.SimRunner.advance`); ``hold_clock``:
+        keep a clock due there for :meth:`release_clock`."""
+        self._hold_clock = hold_clock
+        try:
+            self._runner.advance(target_s, deadline)
+        finally:
+            self._hold_clock = False
+
+    def release_clock(self) -> None:
+        """Publish the clock the last :meth:`advance` held."""
+        t, self._held_clock = self._held_clock, None
+        if t is not None:
+            self._publish_clock(t)
+
+    def _publish_clock(self, t: float) -> None:
+        self._pub["clock"].put(ros.clock(t))
+        self._bus.sim_time = t
 
     @property
     def clock_period_s(self) -> float:
         """Sim seconds between two ``clock`` messages."""
-        return self._clock.period
+        return self._clock.period_s
 
     def apply_command(self, t: float) -> None:
-        """Drive the wheels with the newest command that arrived since the last call (at sim time ``t``): teleop's
-        while it is fresh, else navigation's (the mux, see the module docstring)."""
+        """Drive the wheels with the newest command that arrived since the last call (at sim time ``t``, a clock tick
+        plus ``actuation_delay_s``): teleop's while it is fresh, else navigation's (the mux, see the module
+        docstring)."""
         teleop = self._teleop.take()
         nav = self._cmd.take()
         if teleop is not None:
@@ -294,11 +352,9 @@ class SimBridge:
             self.commands_applied += 1
 
     def publish_due(self, t: float) -> None:
-        """Apply a new ``cmd_vel`` and publish every message due at sim time ``t`` (call every :attr:`tick_s`),
-        ``clock`` last."""
+        """Publish every message due at sim time ``t`` (call every :attr:`tick_s`), ``clock`` last."""
         sim = self.sim
         clock_due = self._clock.due(t)
-        self.apply_command(t)
         if self._spawn is not None:  # the first call: sim time starts with the robot at its spawn pose
             sxy, syaw = self.config.spawn_sigma
             cov = np.diag([sxy**2, sxy**2, syaw**2])
@@ -340,6 +396,7 @@ class SimBridge:
                     collisions=sim.collisions,
                     real_time_factor=t / wall if wall > 0 else 0.0,
                     watchdog_tripped=sim.watchdog_tripped,
+                    lockstep_wait_s=self.barrier.waited_s if self.barrier is not None else 0.0,
                 )
             )
         if self._obstacles is not None and self._obstacles_due.due(t):
@@ -361,8 +418,10 @@ class SimBridge:
         # The clock goes last: a service that sees clock t has received every message stamped up to t. What the
         # sim publishes after it is marked as sent at t (Bus.sim_time): it belongs to a later step.
         if clock_due:
-            self._pub["clock"].put(ros.clock(t))
-            self._bus.sim_time = t
+            if self._hold_clock:
+                self._held_clock = t
+            else:
+                self._publish_clock(t)
 
 
 def publish_robot_facts(bus: Bus, description: RobotDescription) -> tuple[Publisher, Publisher]:
@@ -387,7 +446,7 @@ class SimService(Service[SimConfig]):
     The stepping loop (lockstep or free-running, paced at ``rtf``) drives :attr:`bridge`, a :class:`SimStepping`.
     Another simulator reuses it by subclassing and overriding :meth:`configure` (set ``config`` fields ``rtf``,
     ``rate_hz``, ``lockstep*``; set :attr:`bridge`, :attr:`barrier` — a
-    :class:`~mjnav.runtime.lockstep.LockstepBarrier` or ``None`` — and :attr:`sim`, whose ``time_s`` and
+    :class:`~mjnav.runtime.simtime.LockstepBarrier` or ``None`` — and :attr:`sim`, whose ``time_s`` and
     ``collisions`` the periodic log reads) and :meth:`deactivate`, as :mod:`mjnav.services.uav_sim` does.
     """
 
@@ -434,7 +493,7 @@ class SimService(Service[SimConfig]):
         self.bridge = bridge = SimBridge(self.sim, self.bus, cfg)
         self.runner = SimRunner(self.sim, rtf=None)  # paced by step() below
         bridge.attach(self.runner)
-        self.barrier = (
+        self.barrier = bridge.barrier = (
             LockstepBarrier(self.bus, cfg.lockstep_participants, cfg.lockstep_timeout_s, self.log)
             if cfg.lockstep
             else None
@@ -469,9 +528,17 @@ class SimService(Service[SimConfig]):
     def activate(self) -> None:
         self._wall0 = time.monotonic()
         self._last_report = self._wall0
-        self._pace: tuple[float, float] | None = None  # (wall, sim) reference of lockstep pacing
+        # Lockstep: never sprint after a stall, and the next tick allowed at once; free-running: sim time follows
+        # rtf × wall time since activation, catching up like hardware.
+        lockstep = self.barrier is not None
+        lead_s = self.bridge.clock_period_s if lockstep else 0.0
+        self._pacer = Pacer(self.config.rtf, catch_up=not lockstep, lead_s=lead_s)
+        self._pacer.reset(self.bridge.time_s)
         self._time_started = False
         self._missing: list[str] = []
+        self._clock_s = 0.0  # the newest clock published
+        self._round = _Round.IDLE
+        self._actuators = frozenset(n for topic in self.bridge.command_topics for n in PUBLISH_RIGHTS[topic])
 
     def step(self, now: float) -> None:
         if self.barrier is not None:
@@ -490,7 +557,16 @@ class SimService(Service[SimConfig]):
 
     def _step_lockstep(self) -> None:
         """Advance clock tick by clock tick while every participant is ready, within one loop period of wall time
-        and at most ``rtf`` × wall time."""
+        and at most ``rtf`` × wall time.
+
+        A round from clock t to t + tick is pipelined: the physics steps on while the participants still work on
+        their steps at t, and waits only where it must. Up to the moment the robot takes a new command
+        (:meth:`SimStepping.free_until_s`) it needs nobody; from there to t + tick it needs the participants that
+        command it (``command_topics``' publishers: the controller) to have finished their step at t; the clock of
+        t + tick goes out only once every participant has. What the sim publishes meanwhile is sent at t (the
+        clock's tag), so every participant receives it at clock t + tick, exactly as if the sim had waited for
+        everybody first: the same messages in every step, on any machine, whatever the packing.
+        """
         barrier = self.barrier
         assert barrier is not None
         tick = self.bridge.clock_period_s
@@ -500,6 +576,7 @@ class SimService(Service[SimConfig]):
             self.log.info("lockstep: sim time starts with %s", ", ".join(barrier.participants()) or "no participant")
             self._time_started = True
             self._wall0 = self.bridge.wall0 = time.monotonic()  # the real-time factor counts from here
+            self._pacer.reset(0.0)
             barrier.published(0.0, tick)  # before the clock goes out: reports may come back at once
             self.bridge.advance(0.0)  # publishes everything due at t = 0, the clock last
         rtf = self.config.rtf
@@ -512,31 +589,37 @@ class SimService(Service[SimConfig]):
             else:
                 self.log.info("lockstep: every participant is back: real-time factor %s", self.config.rtf or "max")
             self._missing = missing
-            self._pace = None
+            self._pacer = Pacer(rtf, lead_s=tick)
         deadline = time.monotonic() + 1.0 / self.config.rate_hz
+        bridge = self.bridge
         while True:
-            t = self.bridge.time_s
-            if rtf > 0:
-                wall = time.monotonic()
-                if self._pace is None or (t - self._pace[1]) < rtf * (wall - self._pace[0]) - rtf * 0.1:
-                    self._pace = (wall - tick / rtf, t)  # (re)start pacing: never sprint to catch up after a stall
-                if t + tick > self._pace[1] + rtf * (wall - self._pace[0]):
+            t = self._clock_s
+            if self._round is _Round.IDLE:
+                if t + tick > self._pacer.allowed(t):
                     return
+                free = bridge.free_until_s(t)
+                if free > t:
+                    bridge.advance(free)  # no command is taken on the way: nobody to wait for
+                self._round = _Round.ACTUATING
+            if self._round is _Round.ACTUATING:
+                if not barrier.wait(t, max(0.0, deadline - time.monotonic()), among=self._actuators):
+                    return
+                bridge.advance(t + tick, hold_clock=True)
+                self._round = _Round.HELD
             if not barrier.wait(t, max(0.0, deadline - time.monotonic())):
                 return
-            barrier.published(t + tick, tick)
-            self.bridge.advance(t + tick)
+            barrier.published(t + tick, tick)  # before the clock goes out: reports may come back at once
+            bridge.release_clock()
+            self._clock_s = t + tick
+            self._round = _Round.IDLE
             if time.monotonic() >= deadline:
                 return
 
     def _step_free(self) -> None:
         cfg = self.config
-        if cfg.rtf > 0:
-            target = cfg.rtf * (time.monotonic() - self._wall0)
-            deadline = time.perf_counter() + 2.0 / cfg.rate_hz  # never block the loop for long
-            self.bridge.advance(target, deadline)
-        else:
-            self.bridge.advance(math.inf, time.perf_counter() + 0.9 / cfg.rate_hz)
+        bounded = self._pacer.rtf is not None
+        deadline = time.perf_counter() + (2.0 if bounded else 0.9) / cfg.rate_hz  # never block the loop for long
+        self.bridge.advance(self._pacer.allowed(self.bridge.time_s), deadline)
 
     def starved(self) -> str:
         barrier = self.barrier

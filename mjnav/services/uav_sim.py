@@ -24,8 +24,8 @@ from typing import Any
 
 from mjnav.msgs import msg_class, ros
 from mjnav.msgs import uav as uav_msgs
-from mjnav.runtime.lockstep import LockstepBarrier
-from mjnav.services.sim import SIM_STATUS_RATE_HZ, SimService, _Every
+from mjnav.runtime.simtime import LockstepBarrier, Schedule
+from mjnav.services.sim import SIM_STATUS_RATE_HZ, SimService
 
 
 @dataclass(frozen=True)
@@ -124,13 +124,13 @@ class UavBridge:
         self._pub = {
             name: bus.publisher(name) for name in ("clock", "imu", "gps", "baro", "mocap", "ground_truth", "sim_status")
         }
-        self._clock = _Every(config.clock_rate_hz)
-        self._gps = _Every(config.gps_rate_hz)
-        self._baro = _Every(config.baro_rate_hz)
-        self._mocap = _Every(config.mocap_rate_hz)
-        self._truth = _Every(config.truth_rate_hz)
-        self._status = _Every(SIM_STATUS_RATE_HZ)
-        self._frame = _Every(config.record_fps)
+        self._clock = Schedule.every(config.clock_rate_hz)
+        self._gps = Schedule.every(config.gps_rate_hz)
+        self._baro = Schedule.every(config.baro_rate_hz)
+        self._mocap = Schedule.every(config.mocap_rate_hz)
+        self._truth = Schedule.every(config.truth_rate_hz)
+        self._status = Schedule.every(SIM_STATUS_RATE_HZ)
+        self._frame = Schedule.every(config.record_fps)
         self._sim_status = msg_class("mjnav_msgs/msg/SimStatus")
         self._fixes: deque[tuple[float, Any]] = deque()  # (publish at, NavSatFix)
         self._outbox: list[tuple[Any, Any]] = []  # (publisher, message) of the clock period under way
@@ -141,9 +141,14 @@ class UavBridge:
                 f"the IMU period {self.tick_s} s must be a multiple of the physics step {sim.timestep_s} s"
             )
         self._ticks = 0
+        self.command_topics: tuple[str, ...] = ("rotor_cmd",)
+        self._hold_clock = False
+        self._held_clock: float | None = None
         self._last_cmd_t = -math.inf
         self.watchdog_tripped = False
         self.wall0 = time.monotonic()
+        #: The sim's lockstep barrier (None: free-running), whose waiting time ``sim_status`` reports.
+        self.barrier: LockstepBarrier | None = None
         self._started = False
 
     @property
@@ -154,16 +159,31 @@ class UavBridge:
     @property
     def clock_period_s(self) -> float:
         """Sim seconds between two ``clock`` messages."""
-        return self._clock.period
+        return self._clock.period_s
 
-    def advance(self, target_s: float, deadline: float | None = None) -> None:
+    def free_until_s(self, clock_s: float) -> float:
+        """The rotors take a new command at every IMU tick, the clock's included: no step without it."""
+        return clock_s
+
+    def release_clock(self) -> None:
+        """Publish the clock the last :meth:`advance` held."""
+        t, self._held_clock = self._held_clock, None
+        if t is not None:
+            self._publish_clock(t)
+
+    def _publish_clock(self, t: float) -> None:
+        self._pub["clock"].put(ros.clock(t))
+        self._bus.sim_time = t  # what follows belongs to a later step (mjnav.runtime.simtime.SimTimeGate)
+
+    def advance(self, target_s: float, deadline: float | None = None, *, hold_clock: bool = False) -> None:
         """Step to sim time ``target_s`` (whole IMU ticks), publishing what falls due; stop early at the
-        ``time.perf_counter`` ``deadline``.
+        ``time.perf_counter`` ``deadline``; ``hold_clock``: keep a clock due there for :meth:`release_clock`.
 
         The messages of a clock period go out together, in their order, when its clock is due (and at the end):
         one burst per lockstep round costs Zenoh a fraction of the wake-ups of messages spread over the physics
         steps, and subscribers see nothing of a period before its clock anyway.
         """
+        self._hold_clock = hold_clock
         try:
             if not self._started:
                 self._started = True
@@ -177,6 +197,7 @@ class UavBridge:
                 self._ticks += 1
                 self._publish_due(self._ticks * self.tick_s)
         finally:
+            self._hold_clock = False
             self._flush()
 
     def _put(self, name: str, msg: Any) -> None:
@@ -248,15 +269,18 @@ class UavBridge:
                     collisions=sim.collisions,
                     real_time_factor=t / wall if wall > 0 else 0.0,
                     watchdog_tripped=self.watchdog_tripped,
+                    lockstep_wait_s=self.barrier.waited_s if self.barrier is not None else 0.0,
                 ),
             )
         if self.recorder is not None and self._frame.due(t):
             self.recorder.capture()
         # The clock goes last: a service that sees clock t has received every message stamped up to t.
         if self._clock.due(t):
-            self._put("clock", ros.clock(t))
             self._flush()
-            self._bus.sim_time = t  # what follows belongs to a later step (see Bus.commit)
+            if self._hold_clock:
+                self._held_clock = t
+            else:
+                self._publish_clock(t)
 
 
 class UavSimService(SimService):
@@ -303,7 +327,7 @@ class UavSimService(SimService):
         # Where the world is on Earth: the GPS fixes' reference, latched for the INS (a world fact, on the bus).
         self.datum = self.bus.publisher("datum")
         self.datum.put(uav_msgs.nav_sat_fix(0.0, cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m, 0.0))
-        self.barrier = (
+        self.barrier = self.bridge.barrier = (
             LockstepBarrier(self.bus, cfg.lockstep_participants, cfg.lockstep_timeout_s, self.log)
             if cfg.lockstep
             else None

@@ -7,9 +7,12 @@ whatever falls due), and so is the recorder at its frame rate. :meth:`SimRunner.
 for a duration; :meth:`SimRunner.advance` steps up to a sim time within a wall-time budget, for a caller that
 owns the pacing (the sim service, stepping in its own rate loop).
 
-Pacing: with ``rtf`` = a number, the loop sleeps so that sim time advances ``rtf`` times as fast as wall time
-(1.0 = real time), checked at every hook call and at least every ``pace_period_s`` of sim time; when the loop
-falls behind it does not sleep and does not try to catch up. ``rtf=None`` runs as fast as possible.
+Hooks are due on schedules (:class:`~mjnav.runtime.simtime.Schedule`: sim time, from a count, no drift) and
+called at the first physics step at or after each due time. Pacing (:meth:`SimRunner.run`) is the project's one pacer,
+:class:`~mjnav.runtime.simtime.Pacer`: with ``rtf`` = a number, the loop sleeps so that sim time advances ``rtf``
+times as fast as wall time (1.0 = real time), checked at every hook call and at least every ``pace_period_s`` of
+sim time; a loop that has fallen behind (a stall) starts the line again rather than sprinting to catch up.
+``rtf=None`` runs as fast as possible.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from mjnav.runtime.simtime import Pacer, Schedule
 from mjnav.sim.errors import InvalidCommandError
 from mjnav.sim.simulator import Simulator
 
@@ -52,10 +56,9 @@ class RunStats:
 @dataclass(slots=True)
 class _Scheduled:
     hook: Hook
-    period_steps: float
-    origin: int
-    count: int
-    next_k: int
+    schedule: Schedule | None  # None: every physics step
+    offset_s: float
+    next_k: int  # the physics step of the next call
 
 
 class SimRunner:
@@ -81,27 +84,29 @@ class SimRunner:
         self._pace_steps = max(1, round(pace_period_s / sim.timestep_s))
         self._hooks: list[_Scheduled] = []
 
-    def add_hook(self, hook: Hook, period_s: float | None = None) -> None:
-        """Call ``hook(sim)`` now (at the start of the next run) and then every ``period_s`` of sim time.
+    def add_hook(self, hook: Hook, period_s: float | None = None, offset_s: float = 0.0) -> None:
+        """Call ``hook(sim)`` ``offset_s`` from now (at the start of the next run when 0) and then every
+        ``period_s`` of sim time.
 
         Args:
             hook: the callable; it may read sensors and call ``set_command`` but must not step the simulator.
             period_s: sim-time period, seconds; ``None`` = every physics step (costly: one Python call per
-                step).
-                Due times are whole steps (rounded), without cumulative drift.
+                step). A call falls on the first physics step at or after its due time; due times do not drift.
+            offset_s: sim seconds from now to the first call (>= 0).
 
         Raises:
-            InvalidCommandError: a non-positive period.
+            InvalidCommandError: a non-positive period or a negative offset.
         """
-        dt = self.sim.timestep_s
-        if period_s is None:
-            period_steps = 1.0
-        elif math.isfinite(period_s) and period_s > 0.0:
-            period_steps = max(1.0, period_s / dt)
-        else:
+        if period_s is not None and not (math.isfinite(period_s) and period_s > 0.0):
             raise InvalidCommandError(f"hook period must be positive or None, got {period_s}")
-        k = self.sim.step_count
-        self._hooks.append(_Scheduled(hook, period_steps, k, 0, k))
+        if not (math.isfinite(offset_s) and offset_s >= 0.0):
+            raise InvalidCommandError(f"hook offset must be >= 0 s, got {offset_s}")
+        schedule = None if period_s is None else Schedule(period_s, self.sim.time_s + offset_s)
+        self._hooks.append(_Scheduled(hook, schedule, offset_s, self._step_at(self.sim.time_s + offset_s)))
+
+    def _step_at(self, t: float) -> int:
+        """The first physics step at or after sim time ``t``."""
+        return math.ceil(t / self.sim.timestep_s - 1e-6)
 
     def _call_due(self, end: int) -> int:
         """Call the hooks due at the current step; returns the step of the next due hook (at most ``end``)."""
@@ -111,8 +116,11 @@ class SimRunner:
         for h in self._hooks:
             if h.next_k <= k:
                 h.hook(sim)
-                h.count += 1
-                h.next_k = max(k + 1, h.origin + round(h.count * h.period_steps))
+                if h.schedule is None:
+                    h.next_k = k + 1
+                else:
+                    h.schedule.due(sim.time_s)
+                    h.next_k = max(k + 1, self._step_at(h.schedule.next_s))
             nxt = min(nxt, h.next_k)
         return nxt
 
@@ -147,9 +155,11 @@ class SimRunner:
         k0 = sim.step_count
         end = k0 + round(duration_s / dt)
         for h in self._hooks:  # schedules restart at the current step
-            h.origin, h.count, h.next_k = k0, 0, k0
-        paced = self.rtf is not None
-        wall_per_step = dt / self.rtf if self.rtf is not None else 0.0
+            if h.schedule is not None:
+                h.schedule.reset(sim.time_s + h.offset_s)
+            h.next_k = self._step_at(sim.time_s + h.offset_s)
+        pacer = Pacer(self.rtf)
+        pacer.reset(sim.time_s)
         stopped = False
         wall0 = time.perf_counter()
         while sim.step_count < end:
@@ -158,16 +168,12 @@ class SimRunner:
             if should_stop is not None and should_stop():
                 stopped = True
                 break
-            if paced:
+            if pacer.rtf is not None:
                 nxt = min(nxt, k + self._pace_steps)
-                ahead = wall0 + (k - k0) * wall_per_step - time.perf_counter()
-                if ahead > 0.0:
-                    time.sleep(ahead)
+                pacer.sleep_until(sim.time_s)
             sim.step(nxt - k)
-        if paced and not stopped:
-            ahead = wall0 + (sim.step_count - k0) * wall_per_step - time.perf_counter()
-            if ahead > 0.0:
-                time.sleep(ahead)
+        if not stopped:
+            pacer.sleep_until(sim.time_s)
         wall = time.perf_counter() - wall0
         steps = sim.step_count - k0
         return RunStats(sim_time_s=steps * dt, wall_s=wall, steps=steps, stopped_early=stopped)

@@ -9,7 +9,7 @@ import pytest
 
 from mjnav.bus import Bus, wait_until
 from mjnav.msgs import msg_class, ros
-from mjnav.runtime.lockstep import LockstepBarrier
+from mjnav.runtime.simtime import LockstepBarrier
 
 Peer = Callable[..., Bus]
 READY = msg_class("mjnav_msgs/msg/LockstepReady")
@@ -61,6 +61,7 @@ def test_time_starts_with_the_expected_and_waits_for_each_due_step(
     assert "a left" in caplog.text
 
 
+@pytest.mark.e2e
 def test_a_hung_participant_is_named_and_left_out_then_rejoins(peer: Peer, caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.INFO)
     barrier = LockstepBarrier(peer(), ["c"], timeout_s=0.3, log=logging.getLogger("test.lockstep"))
@@ -85,3 +86,20 @@ def test_a_newcomer_joins_at_the_next_clock(peer: Peer) -> None:
     # It may not have received the clock of 3.0 (published before it subscribed): time may pass 3.0 without it,
     # not 3.01.
     assert barrier.blocking(3.0) == [] and barrier.blocking(3.01) == ["late"]
+
+
+def test_the_sim_can_wait_for_the_participants_that_command_it_alone(peer: Peer) -> None:
+    """Within a round the physics needs only the robot's commanders (the controller) to have stepped; the clock
+    needs everybody. A wait among a few ignores the others, and counts into the barrier's waiting time."""
+    barrier = LockstepBarrier(peer(), ["controller", "slam"], timeout_s=30.0, log=logging.getLogger("test.lockstep"))
+    controller, slam = Participant(peer(), "controller"), Participant(peer(), "slam")
+    assert wait_until(barrier.started, 10.0)
+    barrier.published(0.0, TICK)
+    controller.report(0.0, 0.05)
+    assert barrier.wait(0.0, 10.0, among={"controller"})  # slam still steps at 0: the physics may go on
+    assert barrier.blocking(0.0) == ["slam"] and barrier.blocking(0.0, among={"controller"}) == []
+    assert not barrier.wait(0.0, 0.05)  # but not the clock
+    assert barrier.wait(0.0, 10.0, among={"teleop"})  # a commander that is not a participant holds nothing
+    slam.report(0.0, 0.05)
+    assert barrier.wait(0.0, 10.0)
+    assert barrier.waited_s >= 0.05

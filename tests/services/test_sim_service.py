@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from mjnav.bus import Bus
+from mjnav.geometry import Pose2D
 from mjnav.msgs import ros
 from mjnav.robot import parse_robot_description
 from tests.conftest import REPO
@@ -53,6 +54,7 @@ def sim_process(router_endpoint: str) -> Iterator[subprocess.Popen[str]]:
     proc.communicate(timeout=10)
 
 
+@pytest.mark.e2e
 def test_sim_publishes_sensors_and_obeys_cmd_vel_with_a_watchdog(
     sim_process: subprocess.Popen[str], peer: Callable[..., Bus]
 ) -> None:
@@ -114,6 +116,7 @@ def test_sim_publishes_sensors_and_obeys_cmd_vel_with_a_watchdog(
     assert stamps[1] > stamps[0]
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("world", ["warehouse", "empty"])
 def test_obstacles_carry_the_true_poses_of_the_moving_bodies(world: str, peer: Callable[..., Bus]) -> None:
     from mjnav.services.sim import SimBridge, SimConfig
@@ -151,6 +154,7 @@ def test_obstacles_carry_the_true_poses_of_the_moving_bodies(world: str, peer: C
     assert moved == pytest.approx({b.name: float(b.position_m[1]) for b in sim.moving_body_poses()}, abs=0.05)
 
 
+@pytest.mark.e2e
 def test_the_sim_service_records_while_it_runs(router_endpoint: str, peer: Callable[..., Bus], tmp_path: Path) -> None:
     import imageio.v3 as iio
 
@@ -187,6 +191,7 @@ def test_the_sim_service_records_while_it_runs(router_endpoint: str, peer: Calla
     assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean() > 0.05  # the carts move
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("rates", [{}, {"odom_rate_hz": 50.0}, {"odom_rate_hz": 20.0, "imu_rate_hz": 60.0}])
 def test_each_clock_goes_out_at_its_own_tick_whatever_the_valid_rates(
     rates: dict[str, float], peer: Callable[..., Bus]
@@ -215,6 +220,7 @@ def test_rates_that_put_clock_ticks_off_the_publishing_grid_are_refused(rates: d
         SimConfig(world="empty", **rates)
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize(
     "rates",
     [
@@ -235,6 +241,7 @@ def test_a_clock_off_the_physics_steps_is_refused_when_the_sim_is_wired(
         bridge.attach(SimRunner(sim, rtf=None))
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("announce", [True, False])
 def test_sim_time_starts_with_the_spawn_pose_on_initialpose(announce: bool, peer: Callable[..., Bus]) -> None:
     """Placing the robot at the world's start is part of the simulated world: the sim's first publications (t = 0)
@@ -263,3 +270,58 @@ def test_sim_time_starts_with_the_spawn_pose_on_initialpose(announce: bool, peer
     assert ros.seconds(pose.header.stamp) == 0.0 and pose.header.frame_id == "map"
     assert ros.pose_of(pose) == pytest.approx(sim.world.start)
     assert np.diag(ros.planar_covariance(pose)) == pytest.approx([0.01, 0.01, 0.04])
+
+
+@pytest.mark.e2e
+@pytest.mark.parametrize(
+    ("delay_s", "rates"),
+    [(0.01, {}), (0.03, {}), (0.05, {}), (0.01, {"imu_rate_hz": 20.0}), (0.02, {"odom_rate_hz": 100.0})],
+)
+def test_the_wheels_take_a_command_exactly_the_actuation_delay_after_the_clock(
+    delay_s: float, rates: dict[str, float], peer: Callable[..., Bus]
+) -> None:
+    """The command a controller computes on clock t drives the wheels from t + actuation_delay_s, whatever the
+    sensors' rates (it used to be the IMU's period: imu_rate_hz = 20 silently made it 50 ms)."""
+    from mjnav.services.sim import SimBridge, SimConfig
+    from mjnav.sim import SimRunner, Simulator
+
+    sim = Simulator("empty", seed=0)
+    bus, controller = peer(), peer()
+    bridge = SimBridge(sim, bus, SimConfig(world="empty", actuation_delay_s=delay_s, **rates))
+    runner = SimRunner(sim, rtf=None)
+    bridge.attach(runner)
+    seen: list[tuple[float, float]] = []  # (sim time, commanded v) at every physics step, after the bridge's hooks
+    runner.add_hook(lambda s: seen.append((s.time_s, s.command[0])))
+    marker = bus.subscribe("goal", immediate=True)
+    cmd, mark = controller.publisher("cmd_vel"), controller.publisher("goal")
+    assert cmd.wait_for_subscribers(5.0) and mark.wait_for_subscribers(5.0)
+    tick = bridge.clock_period_s
+    for k in range(1, 5):
+        bridge.advance(k * tick)  # lockstep rounds without a command
+    t0 = 4 * tick  # the controller answers clock t0 ...
+    cmd.put(ros.twist(0.3, 0.0))
+    mark.put(ros.pose_stamped(0.0, "map", Pose2D(0.0, 0.0, 0.0)))  # ... and the sim has it before the next round
+    assert marker.wait(5.0) is not None
+    bridge.advance(t0 + tick)
+    driven = [t for t, v in seen if v == pytest.approx(0.3)]
+    assert driven, "the command never reached the wheels"
+    assert driven[0] == pytest.approx(t0 + delay_s, abs=1e-9)
+    assert all(v == 0.0 for t, v in seen if t < t0 + delay_s - 1e-9)
+
+
+@pytest.mark.parametrize(("delay_s", "error"), [(0.0, "> 0"), (0.06, "at most one clock period")])
+def test_an_actuation_delay_outside_one_clock_period_is_refused(delay_s: float, error: str) -> None:
+    from mjnav.services.sim import SimConfig
+
+    with pytest.raises(ValueError, match=error):
+        SimConfig(world="empty", actuation_delay_s=delay_s)
+
+
+def test_an_actuation_delay_off_the_physics_steps_is_refused_when_the_sim_is_wired(peer: Callable[..., Bus]) -> None:
+    from mjnav.services.sim import SimBridge, SimConfig
+    from mjnav.sim import SimRunner, Simulator
+
+    sim = Simulator("empty", seed=0)
+    bridge = SimBridge(sim, peer(), SimConfig(world="empty", actuation_delay_s=0.003))
+    with pytest.raises(ValueError, match=r"actuation_delay_s .* whole number of 2 ms physics steps"):
+        bridge.attach(SimRunner(sim, rtf=None))

@@ -23,7 +23,7 @@ def test_hooks_run_on_schedule_and_the_end_time_is_exclusive() -> None:
     assert sim.time_s == pytest.approx(3.0)
     assert len(frames) == 90
     assert frames[0] == 0.0
-    assert all(abs(t - k / 30.0) <= 0.001 + 1e-12 for k, t in enumerate(frames))  # rounded to 2 ms steps
+    assert all(-1e-12 <= t - k / 30.0 < 0.002 for k, t in enumerate(frames))  # the first 2 ms step at or after
     assert fast == list(range(1500))
 
 
