@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
+from mjnav.commands._args import add_packing_argument
 from mjnav.commands._launch import run_beside_launcher, write_summary
 
 #: The demo's mission client: a lockstep participant, so goals leave at the same sim time in every run.
@@ -96,6 +97,7 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--port", type=int, default=7447, help="router port on 127.0.0.1 (default 7447)")
     p.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
+    add_packing_argument(p)
     p.add_argument(
         "--secure",
         metavar="DIR",
@@ -267,6 +269,7 @@ def _run(
             extra_participants=[MISSION],
             seed=args.seed,
             secure=args.secure,
+            packed=not args.process_per_service,
         )
         launcher.check()
         bus_config = BusConfig(mode="client", connect=(launcher.endpoint,))

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
-from mjnav.commands._args import non_negative_float
+from mjnav.commands._args import add_packing_argument, non_negative_float
 from mjnav.commands._launch import run_beside_launcher, write_summary
 
 #: The flight client's lockstep name.
@@ -63,6 +63,7 @@ def register(sub: Any) -> None:
     p.add_argument("--headless", action="store_true", help="open no browser or window")
     p.add_argument("--port", type=int, default=7448, help="router port on 127.0.0.1 (default 7448)")
     p.add_argument("--stack", metavar="FILE", help="stack file (default services/uav_stack.toml)")
+    add_packing_argument(p)
     p.add_argument(
         "--set",
         action="append",
@@ -75,7 +76,7 @@ def register(sub: Any) -> None:
 
 
 def _plan(args: argparse.Namespace, pad: Any) -> Any:
-    from mjnav.runtime.flight import figure8_plan, hover_plan, waypoints_plan
+    from mjnav.aerial.trajectories import figure8_plan, hover_plan, waypoints_plan
 
     kind, rest = args.trajectory[0], args.trajectory[1:]
     t0 = PREFLIGHT_S[args.state]
@@ -150,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
             extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,
             extra_participants=[FLIGHT],
             seed=args.seed,
+            packed=not args.process_per_service,
         )
     except ConfigError as exc:
         print(f"mjnav fly: {exc}", file=sys.stderr)

@@ -338,7 +338,7 @@ def _navigate_at(bus: Any, request: Any, at_s: float) -> Any:
                 self._sent = True
                 bus.call_async("navigate", request, finish, finish, timeout_s=5.0)  # leaves before the report
             else:
-                self._next_tick = at_s  # report the next step at at_s: sim time waits there for the request
+                self._next_step(at_s)  # report the next step at at_s: sim time waits there for the request
 
     client = TimedGoal()
     client._participate()

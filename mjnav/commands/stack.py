@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mjnav.commands._args import add_packing_argument
+
 
 def register(sub: Any) -> None:
     """Add the ``run`` and ``up`` commands."""
@@ -16,14 +18,22 @@ def register(sub: Any) -> None:
 
     run = sub.add_parser(
         "run",
-        help="run one service of the stack",
+        help="run one service of the stack, or several in one process",
         description=(
-            "Run one service (e.g. sim) in this process, connected to a Zenoh router. The service steps at its "
-            "configured rate on sim time (the clock topic) or wall time, publishes <ns>/status/<service> every "
-            "second and holds the liveliness token mjnav/alive/<ns>/<service>. Ctrl-C stops it cleanly."
+            "Run one service (e.g. sim) in this process, connected to a Zenoh router; or several (a container: "
+            "'mjnav run slam mapper planner', or the name of a [[container]] of the stack file), which share one "
+            "Zenoh session and one clock and keep their own config, lifecycle, status and lockstep slot. Each "
+            "service steps at its configured rate on sim time (the clock topic) or wall time, publishes "
+            "<ns>/status/<service> every second and holds the liveliness token mjnav/alive/<ns>/<service>. "
+            "Ctrl-C stops it cleanly."
         ),
+        epilog="Examples: mjnav run sim --set world=maze; mjnav run nav; mjnav run slam mapper --set slam.seed=3",
     )
-    run.add_argument("service", help="service name from the stack file (see 'mjnav up --list')")
+    run.add_argument(
+        "service",
+        nargs="+",
+        help="service name(s) from the stack file, or a container's name (see 'mjnav up --list')",
+    )
     run.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
     run.add_argument("--ns", metavar="NAMESPACE", help="robot namespace (default: the stack's, robot0)")
     run.add_argument(
@@ -31,7 +41,8 @@ def register(sub: Any) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="override a config value (TOML syntax: --set rate_hz=20 --set world=maze); repeatable",
+        help="override a config value (TOML syntax: --set rate_hz=20 --set world=maze; with several services "
+        "SERVICE.KEY=VALUE: --set slam.seed=3); repeatable",
     )
     run.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
     add_bus_arguments(run, identity=None)
@@ -67,6 +78,7 @@ def register(sub: Any) -> None:
         help="write a self-contained HTML snapshot of the viz scene when the stack stops",
     )
     up.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
+    add_packing_argument(up)
     up.add_argument(
         "--set",
         action="append",
@@ -118,24 +130,22 @@ def register(sub: Any) -> None:
 def run_service(args: argparse.Namespace) -> int:
     """``mjnav run``."""
     from mjnav.bus import BusConfigError, bus_config_from_args
-    from mjnav.runtime.config import ConfigError, parse_override
+    from mjnav.runtime.config import ConfigError
     from mjnav.runtime.logs import setup_logging
-    from mjnav.runtime.runner import ServiceRunner
+    from mjnav.runtime.process import build_runner, resolve_services
     from mjnav.runtime.stack import load_stack
 
     setup_logging(args.log_level)
     try:
         stack = load_stack(args.stack)
-        spec = stack.get(args.service)
-        overrides = dict(parse_override(item) for item in args.set)
-        config = spec.load_config(overrides)
-        runner = ServiceRunner(
-            spec.load_class(),
-            config,
-            bus_config_from_args(args, identity=spec.name),
-            args.ns or stack.namespace,
-            name=spec.name,
-        )
+        specs = resolve_services(stack, args.service)
+        if len(specs) > 1 and args.secure and not args.identity:
+            raise ConfigError(
+                "--secure gives a process one identity and each service has its own: run each service alone, or "
+                "name a certificate whose rights cover them all with --identity"
+            )
+        bus_config = bus_config_from_args(args, identity=specs[0].name)
+        runner = build_runner(stack, specs, args.set, bus_config, args.ns)
     except (ConfigError, BusConfigError, ValueError) as exc:
         print(f"mjnav run: {exc}", file=sys.stderr)
         return 2
@@ -162,6 +172,9 @@ def run_up(args: argparse.Namespace) -> int:
         if args.list:
             for spec in stack.services:
                 print(f"{spec.name:12s} {spec.class_path}  config={spec.config_file}  restarts={spec.restarts}")
+            for proc in stack.processes(list(stack.services), packed=not args.process_per_service):
+                if proc.container:
+                    print(f"container {proc.name}: {' '.join(proc.service_names())} (one process)")
             return 0
         only = [s.strip() for s in args.only.split(",") if s.strip()] + optional if args.only else None
         overrides: dict[str, list[str]] = {}
@@ -185,6 +198,7 @@ def run_up(args: argparse.Namespace) -> int:
             hung_timeout_s=args.hung_timeout,
             secure=args.secure,
             fork_services=True,
+            packed=not args.process_per_service,
         )
         launcher.check()
     except (ConfigError, BusConfigError, AclError, ValueError) as exc:

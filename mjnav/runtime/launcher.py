@@ -1,13 +1,16 @@
-"""``mjnav up``: an in-process Zenoh router plus every stack service as a supervised child process.
+"""``mjnav up``: an in-process Zenoh router plus the stack's services in supervised child processes.
 
 The router listens on ``tcp/127.0.0.1:<port>`` (``tls/…`` with mutual TLS and access control when ``secure``
-names a ``mjnav certs`` folder); each service runs as ``python -m mjnav run <name>`` connected to
-it, with its output prefixed ``[name]``. A service that exits on its own is restarted (bounded by its
-``restarts`` in the stack file, with exponential back-off); so is a hung one — a running process whose status
-heartbeat (``<ns>/status/<name>``, every wall second) stopped for ``hung_timeout_s``, or whose liveliness token
-vanished — which is killed first. On SIGINT/SIGTERM, or after ``duration_s``, the
-services are stopped in reverse start order (SIGTERM, then SIGKILL after a grace period) and the launcher
-returns 0; a second signal kills everything at once.
+names a ``mjnav certs`` folder). Each process of the deployment (:meth:`mjnav.runtime.stack.Stack.processes`: the
+services of a ``[[container]]`` together, every other service alone) runs as ``python -m mjnav run <names>``
+connected to it, with its output prefixed ``[name]``. A process that exits on its own is restarted (bounded by its
+``restarts`` in the stack file, with exponential back-off); so is a hung one — a running process one of whose
+services' status heartbeat (``<ns>/status/<service>``, every wall second) stopped for ``hung_timeout_s``, or whose
+liveliness token vanished — which is killed first. A container restarts as a unit: its services share a process,
+so one hung service takes its siblings down with it, and all of them resume from the run's checkpoints. With
+``secure`` every service runs alone (a process has one identity, and access control grants each service its own
+topics). On SIGINT/SIGTERM, or after ``duration_s``, the processes are stopped in reverse start order (SIGTERM,
+then SIGKILL after a grace period) and the launcher returns 0; a second signal kills everything at once.
 
 Start-up: with ``fork_services`` (``mjnav up``, ``mjnav demo``, ``mjnav fly``) the launcher imports what every
 service needs once (:data:`PRELOAD_MODULES`, the service classes, numba's compiler target) and forks each service's
@@ -44,7 +47,7 @@ from mjnav.bus.acl import secure_router_config
 from mjnav.bus.config import tls_env
 from mjnav.runtime.config import ConfigError, parse_override
 from mjnav.runtime.service import STATE_DIR_ENV
-from mjnav.runtime.stack import ServiceSpec, Stack
+from mjnav.runtime.stack import ProcessSpec, Stack
 
 log = logging.getLogger("mjnav.up")
 
@@ -60,8 +63,8 @@ FIRST_STEP_TIMEOUT_S = 120.0
 
 
 #: Modules every forked service needs besides its own class (imported once by the launcher, see ``fork_services``):
-#: the command line and the runner the child runs, and the packages services import lazily in ``configure``.
-PRELOAD_MODULES = ("mjnav.cli", "mjnav.commands.stack", "mjnav.runtime.runner", "mjnav.sim", "mjnav.viz", "numba")
+#: what builds and runs the child's services, and the packages services import lazily in ``configure``.
+PRELOAD_MODULES = ("mjnav.runtime.process", "mjnav.runtime.logs", "mjnav.sim", "mjnav.viz", "numba")
 
 
 #: prctl option: the signal a process gets when its parent dies (linux/prctl.h).
@@ -176,15 +179,21 @@ class _ForkedProcess:
 
 @dataclass
 class _Child:
-    spec: ServiceSpec
+    """One supervised process and what its services last said."""
+
+    spec: ProcessSpec
     proc: _Process | None = None
     restarts: int = 0
     restart_at: float | None = None
     gave_up: bool = False
     pumps: list[threading.Thread] = field(default_factory=list)
-    last_status: float | None = None  # wall time of the newest status heartbeat from the current process
-    stepped: bool = False  # the current process reported a step (before that, FIRST_STEP_TIMEOUT_S applies)
-    alive: bool = False  # the current process's liveliness token is up
+    last_status: dict[str, float] = field(default_factory=dict)  # service -> wall time of its newest heartbeat
+    stepped: set[str] = field(default_factory=set)  # services that reported a step (else FIRST_STEP_TIMEOUT_S)
+    alive: set[str] = field(default_factory=set)  # services whose liveliness token came up in this process
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
 
 
 class Launcher:
@@ -209,9 +218,11 @@ class Launcher:
         secure: folder of ``mjnav certs`` certificates: the router listens on ``tls/127.0.0.1:<port>`` with mutual
             TLS and the stack's access control (:mod:`mjnav.bus.acl`); each service connects with its own
             certificate. None: plain TCP on loopback, no access control.
-        fork_services: start each service's first process by forking this one after importing what the services
+        fork_services: start each process the first time by forking this one after importing what the services
             need (see the module's docs). Only for a process that has not opened a Zenoh session and runs no other
             threads when :meth:`spawn` (or :meth:`run`) forks: the launcher of ``mjnav up``, ``mjnav demo``.
+        packed: run the services of each of the stack's containers in one process (False: every service in a
+            process of its own). Ignored with ``secure``.
     """
 
     def __init__(
@@ -231,6 +242,7 @@ class Launcher:
         hung_timeout_s: float = HUNG_TIMEOUT_S,
         secure: str | Path | None = None,
         fork_services: bool = False,
+        packed: bool = True,
     ) -> None:
         if not hung_timeout_s > 0:
             raise ValueError(f"hung_timeout_s must be > 0, got {hung_timeout_s}")
@@ -244,7 +256,8 @@ class Launcher:
         self._add_run_settings(lockstep, extra_participants, seed)
         self.extra_env = extra_env or {}
         self.out = out or sys.stdout
-        self.children = [_Child(spec) for spec in self.specs]
+        self.processes = stack.processes(self.specs, packed=packed and secure is None)
+        self.children = [_Child(proc) for proc in self.processes]
         self.stop_event = threading.Event()
         self._out_lock = threading.Lock()
         self._signals = 0
@@ -317,13 +330,13 @@ class Launcher:
 
     # ------------------------------------------------------------------------------------------- child process
 
-    def _command(self, spec: ServiceSpec) -> list[str]:
+    def _command(self, spec: ProcessSpec) -> list[str]:
         cmd = [
             sys.executable,
             "-m",
             "mjnav",
             "run",
-            spec.name,
+            *spec.service_names(),
             "--stack",
             str(self.stack.path),
             "--ns",
@@ -335,9 +348,13 @@ class Launcher:
             "--connect",
             self.endpoint,
         ]
-        for item in self.overrides.get(spec.name, []):
+        for item in self._set_items(spec):
             cmd += ["--set", item]
         return cmd
+
+    def _set_items(self, spec: ProcessSpec) -> list[str]:
+        """The ``--set`` items of the process ``spec``: ``SERVICE.KEY=VALUE``."""
+        return [f"{s}.{item}" for s in spec.service_names() for item in self.overrides.get(s, [])]
 
     def _env(self) -> dict[str, str]:
         env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}
@@ -362,24 +379,27 @@ class Launcher:
         )
         self._started(child, proc)
 
-    def _child_env(self, spec: ServiceSpec) -> dict[str, str]:
-        return {**self._env(), **(tls_env(self.secure, spec.name) if self.secure is not None else {})}
+    def _child_env(self, spec: ProcessSpec) -> dict[str, str]:
+        # with secure, every process hosts one service (see the module's docs) and has its identity
+        secure = tls_env(self.secure, spec.services[0].name) if self.secure is not None else {}
+        return {**self._env(), **secure}
 
     def _started(self, child: _Child, proc: _Process) -> None:
         with self._lock:
             child.proc = proc
-            child.last_status = None
-            child.stepped = False
-            child.alive = False
-        pump = threading.Thread(target=self._pump, args=(child.spec.name, proc), daemon=True)
+            child.last_status = {}
+            child.stepped = set()
+            child.alive = set()
+        pump = threading.Thread(target=self._pump, args=(child.name, proc), daemon=True)
         pump.start()
         child.pumps.append(pump)
-        log.info("started %s (pid %d)", child.spec.name, proc.pid)
+        hosts = f": {', '.join(child.spec.service_names())}" if child.spec.container else ""
+        log.info("started %s (pid %d)%s", child.name, proc.pid, hosts)
 
     def spawn(self) -> None:
-        """Fork every service's first process (with ``fork_services``; otherwise :meth:`run` starts them).
+        """Fork every process the first time (with ``fork_services``; otherwise :meth:`run` starts them).
 
-        Imports what the services need, sets up numba's compiler target once, then forks one child per service,
+        Imports what the services need, sets up numba's compiler target once, then forks one child per process,
         each held until :meth:`run` has the router listening (so none waits out Zenoh's connect retry period).
         Call it before this process opens a Zenoh session or starts a thread (``mjnav demo`` calls it before its
         own client connects); :meth:`run` calls it when nobody did. Idempotent.
@@ -389,8 +409,8 @@ class Launcher:
         self._spawned = True
         for name in PRELOAD_MODULES:
             importlib.import_module(name)
-        for spec in self.specs:
-            spec.load_class()
+        for service in self.specs:
+            service.load_class()
         _prime_numba()
         self.state_dir = tempfile.mkdtemp(prefix="mjnav-state-")
         go_read, self._go_write = os.pipe()
@@ -401,10 +421,10 @@ class Launcher:
         for child, proc in forked:  # threads only once every fork is done
             self._started(child, proc)
 
-    def _fork(self, spec: ServiceSpec, go: int, siblings: list[IO[str] | None]) -> _ForkedProcess:
-        """Fork the process of ``spec``: it runs ``mjnav run`` (as :meth:`_command` says) once ``go``'s write end
-        is closed; ``siblings``: the output pipes of the services forked before (their ends are closed in it)."""
-        argv = self._command(spec)[3:]  # after "python -m mjnav"
+    def _fork(self, spec: ProcessSpec, go: int, siblings: list[IO[str] | None]) -> _ForkedProcess:
+        """Fork the process of ``spec``: it runs the services as ``mjnav run`` would (:meth:`_command`) once
+        ``go``'s write end is closed; ``siblings``: the output pipes of the processes forked before (their ends are
+        closed in it)."""
         env = self._child_env(spec)
         out_read, out_write = os.pipe()
         parent = os.getpid()
@@ -438,9 +458,7 @@ class Launcher:
                 while os.read(go, 1):  # EOF: the router listens (or the launcher is gone)
                     pass
                 os.close(go)
-                from mjnav.cli import main
-
-                code = main(argv)
+                code = self._run_forked(spec)
             except SystemExit as exc:
                 code = exc.code if isinstance(exc.code, int) else 1
             except BaseException:
@@ -454,6 +472,23 @@ class Launcher:
                 os._exit(code)
         os.close(out_write)
         return _ForkedProcess(pid, open(out_read, encoding="utf-8", errors="replace"))
+
+    def _run_forked(self, spec: ProcessSpec) -> int:
+        """In a forked child: run the services of ``spec`` (what ``mjnav run`` does with :meth:`_command`'s
+        arguments, without the command line: the runtime does not import the commands)."""
+        from mjnav.bus import BusConfigError, load_bus_config
+        from mjnav.runtime.logs import setup_logging
+        from mjnav.runtime.process import build_runner
+
+        setup_logging()
+        try:
+            bus_config = load_bus_config(mode="client", connect=(self.endpoint,))  # TLS files from the environment
+            runner = build_runner(self.stack, spec.services, self._set_items(spec), bus_config, self.namespace)
+        except (ConfigError, BusConfigError, ValueError) as exc:
+            print(f"mjnav run: {exc}", file=sys.stderr)
+            return 2
+        runner.install_signal_handlers()
+        return runner.run()
 
     def _pump(self, name: str, proc: _Process) -> None:
         assert proc.stdout is not None
@@ -470,12 +505,12 @@ class Launcher:
         try:
             proc.wait(STOP_GRACE_S)
         except subprocess.TimeoutExpired:
-            log.warning("%s did not stop within %.0f s: killing it", child.spec.name, STOP_GRACE_S)
+            log.warning("%s did not stop within %.0f s: killing it", child.name, STOP_GRACE_S)
             proc.kill()
             proc.wait()
         for pump in child.pumps:
             pump.join(1.0)
-        log.info("stopped %s (exit code %s)", child.spec.name, proc.returncode)
+        log.info("stopped %s (exit code %s)", child.name, proc.returncode)
 
     # ------------------------------------------------------------------------------------------- supervision
 
@@ -496,7 +531,7 @@ class Launcher:
         if child.restarts >= child.spec.restarts:
             log.error(
                 "%s exited with code %s; %d restart(s) used up, giving up",
-                child.spec.name,
+                child.name,
                 code,
                 child.restarts,
             )
@@ -506,7 +541,7 @@ class Launcher:
         child.restarts += 1
         log.warning(
             "%s exited with code %s; restarting in %.1f s (restart %d of %d)",
-            child.spec.name,
+            child.name,
             code,
             delay,
             child.restarts,
@@ -515,70 +550,67 @@ class Launcher:
         child.restart_at = now + delay
 
     def _check_hung(self, child: _Child, proc: _Process, now: float) -> None:
-        """Kill a running service that stopped answering (the next :meth:`_supervise` restarts it): its status
-        heartbeat is older than :attr:`hung_timeout_s`, or its liveliness token went away. A process that has not
-        sent its first status yet is starting (imports, compilation) and is left alone."""
+        """Kill a running process one of whose services stopped answering (the next :meth:`_supervise` restarts
+        the process): its status heartbeat is older than :attr:`hung_timeout_s`, or its liveliness token went
+        away. A service that has not sent its first status yet is starting (imports, compilation) and is left
+        alone."""
+        reason = ""
         with self._lock:
-            last = child.last_status
-            token_lost = child.alive and child.spec.name not in self._alive
-            timeout = self.hung_timeout_s if child.stepped else max(self.hung_timeout_s, FIRST_STEP_TIMEOUT_S)
-        if last is None:
-            return
-        if token_lost:
-            reason = "its liveliness token vanished"
-        elif now - last > timeout:
-            reason = f"no status for {now - last:.1f} s"
-        else:
-            return
-        log.warning("%s (pid %d) is hung: %s; killing it", child.spec.name, proc.pid, reason)
-        with self._lock:
-            child.last_status = None
-            child.alive = False
+            for service in child.spec.service_names():
+                last = child.last_status.get(service)
+                stepped = service in child.stepped
+                timeout = self.hung_timeout_s if stepped else max(self.hung_timeout_s, FIRST_STEP_TIMEOUT_S)
+                if service in child.alive and service not in self._alive:
+                    reason = f"{service}'s liveliness token vanished"
+                elif last is not None and now - last > timeout:
+                    reason = f"no status from {service} for {now - last:.1f} s"
+                if reason:
+                    break
+            if not reason:
+                return
+            child.last_status = {}
+            child.alive = set()
+        whole = f" with {', '.join(child.spec.service_names())}" if child.spec.container else ""
+        log.warning("%s (pid %d) is hung: %s; killing it%s", child.name, proc.pid, reason, whole)
         proc.kill()
 
     def _on_status(self, msg: Any) -> None:
         now = time.monotonic()
         with self._lock:
             for child in self.children:
-                if child.spec.name == msg.service and child.proc is not None and child.proc.pid == int(msg.pid):
-                    child.last_status = now
-                    child.stepped = child.stepped or int(msg.steps) > 0
+                proc = child.proc
+                if msg.service in child.spec.service_names() and proc is not None and proc.pid == int(msg.pid):
+                    child.last_status[msg.service] = now
+                    if int(msg.steps) > 0:
+                        child.stepped.add(msg.service)
 
     def _on_alive(self, service: str, alive: bool) -> None:
         with self._lock:
             if alive:
                 self._alive.add(service)
                 for child in self.children:
-                    if child.spec.name == service:
-                        child.alive = True
+                    if service in child.spec.service_names():
+                        child.alive.add(service)
             else:
                 self._alive.discard(service)
-            everyone = alive and all(c.spec.name in self._alive for c in self.children)
+            names = [s.name for s in self.specs]
+            everyone = alive and all(name in self._alive for name in names)
         if everyone:
             log.info(
-                "all %d service(s) alive on %s: %s",
-                len(self.children),
+                "all %d service(s) alive on %s in %d process(es): %s",
+                len(names),
                 self.endpoint,
-                ", ".join(c.spec.name for c in self.children),
+                len(self.children),
+                ", ".join(names),
             )
 
     def _open_router(self) -> Bus:
-        """The router's session. Zenoh holds ``open`` back for its scouting delay (500 ms by default) to discover
-        peers first; the router has none to discover (multicast scouting is off, it connects nowhere), so the
-        delay is 0.
+        """The router's session.
 
         Raises:
             BusUnavailable: the listen port cannot be bound.
         """
-        import zenoh
-
-        config = self._router_config.to_zenoh()
-        config.insert_json5("scouting/delay", "0")
-        try:
-            session = zenoh.open(config)
-        except zenoh.ZError as exc:
-            raise BusUnavailable(f"cannot open a Zenoh router session on {self.endpoint}: {exc}") from exc
-        return Bus(session, self.namespace, owns_session=True)
+        return Bus.open(self._router_config, self.namespace)
 
     def _release(self) -> None:
         """Let the forked services go on (they wait for the router)."""

@@ -1,10 +1,19 @@
-"""Runs one service: signals, the Zenoh session, the rate loop, liveliness and the status topic.
+"""Runs the services of one process: signals, the Zenoh session, the rate loop, liveliness and the status topics.
 
-The loop steps the service at ``config.rate_hz`` on sim time (the ``clock`` topic; the service waits for the first
-clock message) or on wall time. A period that passes without a step — because ``step`` took too long or the
-clock jumped — counts as an overrun. Every second (wall time) a ``mjnav_msgs/ServiceStatus`` goes out on
-``<ns>/status/<service>``. SIGINT/SIGTERM end the loop cleanly (deactivate, final status, session closed);
-a second signal exits at once.
+A process hosts one service (``mjnav run sim``) or several (a *container*, ``mjnav run slam mapper …``: ROS 2's
+composition). The services of a process share its Zenoh session, so what they send each other never leaves the
+process (Zenoh delivers it locally, without the router), and, on sim time, one clock: each accepted clock commits
+every service's staged input (:class:`~mjnav.runtime.simtime.SimTimeGate`) and the loop steps, in the order they
+were given, the services whose step is due. Each service keeps what it has alone: its own bus (its subscriptions,
+its staging, its counters, the receipts it signs), config, lifecycle, status topic, liveliness token and lockstep
+slot. A mission gives the same result to the last bit however the services are packed: a step at sim time t sees
+exactly what was sent before t, whether it came from the next process or from the same one.
+
+Each service steps at its config's ``rate_hz`` on sim time (the ``clock`` topic; the loop waits for the first
+clock message) or on wall time, on its own :class:`~mjnav.runtime.simtime.Schedule`. A due time that passes without
+a step — a step took too long, the clock jumped — counts as an overrun. Every second (wall time) each service's
+``mjnav_msgs/ServiceStatus`` goes out on ``<ns>/status/<service>``. SIGINT/SIGTERM end the loop cleanly
+(deactivate, final status, session closed); a second signal exits at once.
 """
 
 from __future__ import annotations
@@ -16,15 +25,24 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from types import FrameType
-from typing import Any, Protocol
+from typing import Any
 
 from mjnav.bus import Bus, BusConfig
 from mjnav.msgs import msg_class, ros
 from mjnav.runtime.config import build_config, config_to_dict
 from mjnav.runtime.service import Service
+from mjnav.runtime.simtime import (
+    ClockJumpedBack,
+    LockstepReporter,
+    Schedule,
+    SimClock,
+    SimTimeGate,
+    StopRequested,
+    WallClock,
+)
 
 #: Wall seconds between status messages.
 STATUS_PERIOD_S = 1.0
@@ -33,10 +51,6 @@ STATUS_PERIOD_S = 1.0
 #: get the service killed by the launcher's hang check. A step running longer than this is hung: the heartbeat stops.
 STEP_HEARTBEAT_LIMIT_S = 60.0
 log = logging.getLogger("mjnav.runtime")
-#: How long blocking waits sleep at most before re-checking for a stop request.
-_POLL_S = 0.1
-#: Tolerance on tick times, so that accumulated float error never defers a step to the next clock message.
-_TICK_EPS_S = 1e-9
 #: Wall seconds between two looks at what a starting service still waits for (:meth:`Service.starting`).
 _STARTING_POLL_S = 0.02
 #: Seconds (of the loop's clock) a service must have lacked an input before its status says so: the inputs of a
@@ -44,104 +58,6 @@ _STARTING_POLL_S = 0.02
 STARVED_GRACE_S = 1.0
 
 _STATE = {"unconfigured": 0, "inactive": 1, "active": 2, "finalized": 3}
-
-
-class StopRequested(Exception):
-    """Raised inside waits when the runner was asked to stop."""
-
-
-class _Stopper(Protocol):
-    def is_set(self) -> bool: ...
-
-    def wait(self, timeout: float) -> bool: ...
-
-
-class _WallClock:
-    jumps_back = 0
-
-    def __init__(self) -> None:
-        self._t0 = time.monotonic()
-
-    def now(self) -> float:
-        return time.monotonic() - self._t0
-
-    def wait_until(self, t: float, stop: _Stopper, jumps: int | None = None) -> float:
-        while True:
-            now = self.now()
-            if now >= t:
-                return now
-            if stop.wait(min(t - now, _POLL_S)):
-                raise StopRequested
-
-
-class ClockJumpedBack(Exception):
-    """The sim clock went backwards (the simulator restarted); pending waits are abandoned."""
-
-
-#: Largest forward step of sim time between two clock messages that is believed (sim s); a clock further ahead is
-#: dropped as forged or corrupt (the sim ticks 0.05 s apart; a restarted sim goes back, never far forward).
-MAX_CLOCK_JUMP_S = 5.0
-
-
-class _SimClock:
-    """Sim time from the ``clock`` topic; a wait is woken by the clock message that reaches its time (or goes back),
-    not by every tick. A clock more than :data:`MAX_CLOCK_JUMP_S` ahead of the current time is dropped and
-    counted (``rejected_jumps``): one forged message must not fast-forward the service out of the run.
-
-    The bus is switched to staged delivery: every other message becomes visible to the service when the next clock
-    message arrives (:meth:`~mjnav.bus.Bus.commit`), so a step at sim time t sees what was published before the
-    sim reached t and nothing that peers publish while they step at t.
-    """
-
-    def __init__(self, bus: Bus) -> None:
-        self._cond = threading.Condition()
-        self._now = math.nan
-        self._waiting_for = -math.inf  # the time a wait is blocked on (-inf: wake on any clock)
-        self.jumps_back = 0
-        self.rejected_jumps = 0
-        self._bus = bus
-        bus.staged = True
-        self._sub = bus.subscribe("clock", callback=self._on_clock, immediate=True)
-
-    def _on_clock(self, msg: Any) -> None:
-        t = ros.seconds(msg.clock)
-        with self._cond:
-            if t > self._now + MAX_CLOCK_JUMP_S:  # False while no clock arrived yet (NaN)
-                self.rejected_jumps += 1
-                if self.rejected_jumps <= 10 or self.rejected_jumps % 1000 == 0:
-                    log.warning(
-                        "clock jump from %.3f s to %.3f s on %s dropped (%d so far): more than %.0f s ahead",
-                        self._now, t, self._bus.key("clock"), self.rejected_jumps, MAX_CLOCK_JUMP_S,
-                    )  # fmt: skip
-                return
-        self._bus.commit(t)
-        with self._cond:
-            back = t < self._now
-            if back:
-                self.jumps_back += 1
-            self._now = t
-            if back or t >= self._waiting_for:
-                self._cond.notify_all()
-
-    def now(self) -> float:
-        with self._cond:
-            return self._now
-
-    def wait_until(self, t: float, stop: _Stopper, jumps: int | None = None) -> float:
-        """Block until sim time >= ``t``; raises ClockJumpedBack once ``jumps_back`` differs from ``jumps``."""
-        with self._cond:
-            jumps = self.jumps_back if jumps is None else jumps
-            self._waiting_for = t
-            try:
-                while not (self._now >= t):  # also loops while no clock arrived yet (NaN)
-                    if stop.is_set():
-                        raise StopRequested
-                    if self.jumps_back != jumps:
-                        raise ClockJumpedBack
-                    self._cond.wait(_POLL_S)
-                return self._now
-            finally:
-                self._waiting_for = -math.inf
 
 
 @dataclass
@@ -153,50 +69,110 @@ class LoopStats:
     step_errors: int = 0
     step_time_sum_s: float = 0.0
     step_time_max_s: float = 0.0
+    step_cpu_s: float = 0.0
     period_steps: int = 0
     period_start: float = math.nan
     last_error: str = ""
 
 
+@dataclass(frozen=True)
+class Unit:
+    """A service a process runs: its class, validated config (with ``rate_hz``) and name."""
+
+    service_cls: type[Service[Any]]
+    config: Any
+    name: str
+
+
+@dataclass
+class _Hosted:
+    """A service in the process, with everything it has on its own."""
+
+    unit: Unit
+    config: Any
+    bus: Bus
+    log: logging.Logger
+    service: Any = None
+    status_pub: Any = None
+    schedule: Schedule | None = None  # None until the first tick
+    reporter: LockstepReporter | None = None
+    stats: LoopStats = field(default_factory=LoopStats)
+    state: str = "unconfigured"
+    waiting_for: str = ""  # what it lacks (Service.starting, then Service.starved), for the status
+    lacking_since: float = math.nan  # loop time since which Service.starved has said something
+    next_config: Any = None  # a config set through set_param, swapped in before its next step
+
+    @property
+    def name(self) -> str:
+        return self.unit.name
+
+
 class ServiceRunner:
-    """Owns the process-level concerns of one service.
+    """Owns the process-level concerns of the services of one process.
 
     Args:
-        service_cls: the :class:`Service` subclass.
-        config: its validated config (must have ``rate_hz``).
+        service_cls: the :class:`Service` subclass (one service), or a sequence of :class:`Unit` (a container).
+        config: its validated config (must have ``rate_hz``); None with units.
         bus_config: how to join Zenoh.
         namespace: robot namespace.
-        name: service name (default ``service_cls.name``).
-        use_sim_time: override ``service_cls.uses_sim_time``.
+        name: service name (default ``service_cls.name``; one service).
+        use_sim_time: override ``uses_sim_time`` (one service).
+
+    Raises:
+        ValueError: no service, two with one name, or a container mixing sim time and wall time.
     """
 
     def __init__(
         self,
-        service_cls: type[Service[Any]],
-        config: Any,
-        bus_config: BusConfig,
-        namespace: str,
+        service_cls: type[Service[Any]] | Sequence[Unit],
+        config: Any = None,
+        bus_config: BusConfig | None = None,
+        namespace: str = "robot0",
         *,
         name: str | None = None,
         use_sim_time: bool | None = None,
     ) -> None:
-        self.service_cls = service_cls
-        self.config = config
+        if isinstance(service_cls, type):
+            units: list[Unit] = [Unit(service_cls, config, name or service_cls.name)]
+            sim_time = service_cls.uses_sim_time if use_sim_time is None else use_sim_time
+        else:
+            units = list(service_cls)
+            if not units:
+                raise ValueError("a process runs at least one service")
+            kinds = {u.service_cls.uses_sim_time for u in units}
+            if len(kinds) > 1:
+                clocks = ", ".join(f"{u.name} ({'sim' if u.service_cls.uses_sim_time else 'wall'})" for u in units)
+                raise ValueError(f"the services of one process step on one clock, sim or wall time: {clocks}")
+            sim_time = kinds.pop()
+        names = [u.name for u in units]
+        if len(set(names)) != len(names):
+            raise ValueError(f"two services of one process share a name: {names}")
+        if bus_config is None:
+            raise ValueError("bus_config is required")
+        self.units = units
         self.bus_config = bus_config
         self.namespace = namespace
-        self.name = name or service_cls.name
-        self.use_sim_time = service_cls.uses_sim_time if use_sim_time is None else use_sim_time
-        self.log = logging.getLogger(f"mjnav.{self.name}")
+        self.name = "+".join(names)
+        self.use_sim_time = sim_time
+        self.log = logging.getLogger(f"mjnav.{names[0]}" if len(units) == 1 else "mjnav.runtime")
         self.stop_event = threading.Event()
-        self.stats = LoopStats()
-        self._state = "unconfigured"
         self._started = time.monotonic()
         self._signals = 0
         self._config_lock = threading.Lock()
-        self._next_config: Any = None  # a config set through set_param, swapped in before the next step
         self._step_started: float | None = None  # time.monotonic() when the running step began (None: between steps)
-        self.waiting_for = ""  # what the service lacks (Service.starting, then Service.starved), for the status
-        self._lacking_since = math.nan  # loop time since which Service.starved has said something
+        self.hosted: list[_Hosted] = []
+
+    # -------------------------------------------------------------------------------------- one service's view
+
+    @property
+    def stats(self) -> LoopStats:
+        """The first (for one service: the) service's loop statistics."""
+        return self.hosted[0].stats if self.hosted else LoopStats()
+
+    @property
+    def waiting_for(self) -> str:
+        """What the first (for one service: the) service lacks, as its status says."""
+        return self.hosted[0].waiting_for if self.hosted else ""
 
     # ---------------------------------------------------------------------------------------------- signals
 
@@ -215,169 +191,230 @@ class ServiceRunner:
 
     # ---------------------------------------------------------------------------------------------- status
 
-    def _status_msg(self, bus: Bus, now: float) -> Any:
-        s = self.stats
+    def _status_msg(self, h: _Hosted, now: float) -> Any:
+        s = h.stats
         span = now - s.period_start if math.isfinite(now) and math.isfinite(s.period_start) else 0.0
         loop_rate = s.period_steps / span if span > 0 else 0.0
         stamp = now if math.isfinite(now) and 0 <= now < ros.MAX_STAMP_S else 0.0
         return msg_class("mjnav_msgs/msg/ServiceStatus")(
             header=ros.header(stamp, ""),
-            service=self.name,
+            service=h.name,
             robot_namespace=self.namespace,
-            state=_STATE[self._state],
+            state=_STATE[h.state],
             pid=os.getpid(),
             uptime_s=time.monotonic() - self._started,
-            target_rate_hz=float(self.config.rate_hz),
+            target_rate_hz=float(h.config.rate_hz),
             loop_rate_hz=loop_rate,
             step_mean_ms=1e3 * s.step_time_sum_s / s.steps if s.steps else 0.0,
             step_max_ms=1e3 * s.step_time_max_s,
+            step_cpu_s=s.step_cpu_s,
+            process_cpu_s=time.process_time(),
             steps=s.steps,
             overruns=s.overruns,
-            messages_received=bus.stats.received,
-            messages_rejected=bus.stats.rejected,
-            messages_published=bus.stats.published,
-            last_error=s.last_error or bus.stats.last_rejection,
-            waiting_for=self.waiting_for,
+            messages_received=h.bus.stats.received,
+            messages_rejected=h.bus.stats.rejected,
+            messages_published=h.bus.stats.published,
+            last_error=s.last_error or h.bus.stats.last_rejection,
+            waiting_for=h.waiting_for,
         )
+
+    def _send_statuses(self, now: float, *, new_period: bool = False) -> None:
+        for h in self.hosted:
+            if h.status_pub is not None:
+                h.status_pub.put(self._status_msg(h, now))
+            if new_period:
+                h.stats.period_steps = 0
+                h.stats.period_start = now
 
     # ---------------------------------------------------------------------------------------------- main
 
     def run(self) -> int:
         """Run until stopped; returns the process exit code (0 after a clean stop)."""
-        bus = Bus.open(self.bus_config, self.namespace)
+        root = Bus.open(self.bus_config, self.namespace)
         try:
-            return self._run(bus)
+            return self._run(root)
         finally:
-            bus.close()
+            for h in self.hosted:
+                if h.bus is not root:
+                    h.bus.close()
+            root.close()
 
-    def _run(self, bus: Bus) -> int:
-        status_pub = bus.publisher("status", service=self.name)
+    def _host(self, root: Bus) -> None:
+        """One bus per service on the process's session (the first service's is the session's own)."""
         string = msg_class("std_msgs/msg/String")
-        bus.serve("config", lambda _req: string(data=json.dumps(config_to_dict(self.config))), service=self.name)
-        bus.serve("set_param", lambda req: string(data=json.dumps(self._set_param(req.data))), service=self.name)
-        clock: _WallClock | _SimClock = _SimClock(bus) if self.use_sim_time else _WallClock()
+        for i, unit in enumerate(self.units):
+            bus = root if i == 0 else root.sharing()
+            h = _Hosted(unit, unit.config, bus, logging.getLogger(f"mjnav.{unit.name}"))
+            h.status_pub = bus.publisher("status", service=unit.name)
+            self._serve_endpoints(h, string)
+            self.hosted.append(h)
 
-        service = self.service_cls(self.config, bus, self.log)
-        service.configure()
-        self._state = "inactive"
-        service.activate()
-        self._state = "active"
-        bus.declare_alive(self.name)
+    def _serve_endpoints(self, h: _Hosted, string: Any) -> None:
+        """``<ns>/config/<service>`` and ``<ns>/set_param/<service>`` for one service."""
+
+        def get_config(_request: Any) -> Any:
+            return string(data=json.dumps(config_to_dict(h.config)))
+
+        def set_param(request: Any) -> Any:
+            return string(data=json.dumps(self._set_param(h, request.data)))
+
+        h.bus.serve("config", get_config, service=h.name)
+        h.bus.serve("set_param", set_param, service=h.name)
+
+    def _run(self, root: Bus) -> int:
+        self._host(root)
+        clock: WallClock | SimClock
+        if self.use_sim_time:
+            gates = [SimTimeGate(h.bus) for h in self.hosted]
+            clock = SimClock(root, gates)
+        else:
+            clock = WallClock()
+        for h in self.hosted:
+            h.service = h.unit.service_cls(h.config, h.bus, h.log)
+            h.service.configure()
+            h.state = "inactive"
+        for h in self.hosted:
+            h.service.activate()
+            h.state = "active"
+            h.bus.declare_alive(h.name)
         try:
-            self._wait_until_started(service, lambda: status_pub.put(self._status_msg(bus, clock.now())))
+            self._wait_until_started(lambda: self._send_statuses(clock.now()))
         except StopRequested:
-            service.deactivate()
-            status_pub.put(self._status_msg(bus, clock.now()))
+            self._finish(clock)
             return 0
-        lockstep = _LockstepReport(bus, self.name) if self.use_sim_time else None
-        self.log.info(
-            "active: %.1f Hz on %s time, namespace %s",
-            self.config.rate_hz,
-            "sim" if self.use_sim_time else "wall",
-            self.namespace,
-        )
-        period = 1.0 / float(self.config.rate_hz)
-        next_status = time.monotonic()
-        next_tick = math.nan
-        waited_for_clock = False
+        for h in self.hosted:
+            if self.use_sim_time:
+                h.reporter = LockstepReporter(h.bus, h.name)
+            h.log.info(
+                "active: %.1f Hz on %s time, namespace %s%s",
+                h.config.rate_hz,
+                "sim" if self.use_sim_time else "wall",
+                self.namespace,
+                f", with {', '.join(o.name for o in self.hosted if o is not h)} in process {os.getpid()}"
+                if len(self.hosted) > 1
+                else "",
+            )
         heartbeat = threading.Thread(
-            target=self._long_step_heartbeat, args=(lambda: status_pub.put(self._status_msg(bus, clock.now())),),
+            target=self._long_step_heartbeat, args=(lambda: self._send_statuses(clock.now()),),
             name=f"{self.name}-heartbeat", daemon=True,
         )  # fmt: skip
         heartbeat.start()
         try:
-            while not self.stop_event.is_set():
-                if time.monotonic() >= next_status:
-                    status_pub.put(self._status_msg(bus, clock.now()))
-                    self.stats.period_steps = 0
-                    self.stats.period_start = clock.now()
-                    next_status += STATUS_PERIOD_S
-                if math.isnan(next_tick):
-                    if math.isnan(clock.now()):
-                        if not waited_for_clock:
-                            self.log.info("waiting for the clock on %s", bus.key("clock"))
-                            self.waiting_for = f"the clock on {bus.key('clock')} (sim time has not started)"
-                            waited_for_clock = True
-                        try:
-                            clock.wait_until(-math.inf, _StopAfter(self.stop_event, STATUS_PERIOD_S))
-                        except StopRequested:
-                            continue
-                    next_tick = clock.now()
-                jumps = clock.jumps_back
-                try:
-                    now = clock.wait_until(next_tick - _TICK_EPS_S, _StopAfter(self.stop_event, STATUS_PERIOD_S), jumps)
-                except StopRequested:
-                    continue
-                except ClockJumpedBack:
-                    now = clock.now()
-                if clock.jumps_back != jumps:
-                    # The simulator restarted: time-dependent state is void. Re-activate the service (its
-                    # activate() resets that state) and re-sync the loop on the new timeline.
-                    self.log.warning("the clock went back to %.3f s: re-activating", now)
-                    service.deactivate()
-                    service.activate()
-                    next_tick = math.nan
-                    continue
-                missed = math.floor((now - next_tick) / period + _TICK_EPS_S)
-                if missed > 0:
-                    self.stats.overruns += missed
-                    next_tick = now
-                self._apply_config(service)
-                self._step(service, now)
-                self._note_starved(service.starved(), now)
-                next_tick += period
-                if lockstep is not None:
-                    lockstep.ready(now, next_tick)
+            self._loop(clock)
         finally:
-            self._state = "finalized"
             self.stop_event.set()  # ends the heartbeat thread (the loop has ended whatever the reason)
             heartbeat.join()
-            try:
-                service.deactivate()
-            finally:
-                status_pub.put(self._status_msg(bus, clock.now()))
-        self.log.info("stopped after %d steps", self.stats.steps)
+            self._finish(clock)
+        for h in self.hosted:
+            h.log.info("stopped after %d steps", h.stats.steps)
         return 0
 
-    def _wait_until_started(self, service: Service[Any], send_status: Callable[[], None]) -> None:
-        """Hold the service back, its status going out every second, until it has what it needs to step
-        (:meth:`Service.starting`); says once what it waits for.
+    def _finish(self, clock: WallClock | SimClock) -> None:
+        """Deactivate every service (the last first) and send its final status."""
+        for h in reversed(self.hosted):
+            h.state = "finalized"
+            try:
+                h.service.deactivate()
+            except Exception:
+                h.log.exception("deactivate failed")
+        self._send_statuses(clock.now())
+
+    def _loop(self, clock: WallClock | SimClock) -> None:
+        next_status = time.monotonic()
+        waited_for_clock = False
+        while not self.stop_event.is_set():
+            if time.monotonic() >= next_status:
+                self._send_statuses(clock.now(), new_period=True)
+                next_status += STATUS_PERIOD_S
+            if self.hosted[0].schedule is None:
+                if math.isnan(clock.now()):
+                    if not waited_for_clock:
+                        key = self.hosted[0].bus.key("clock")
+                        self.log.info("waiting for the clock on %s", key)
+                        for h in self.hosted:
+                            h.waiting_for = f"the clock on {key} (sim time has not started)"
+                        waited_for_clock = True
+                    try:
+                        clock.wait_until(-math.inf, _StopAfter(self.stop_event, STATUS_PERIOD_S))
+                    except StopRequested:
+                        continue
+                for h in self.hosted:  # every schedule starts at the first clock (or the restart's)
+                    h.schedule = Schedule.every(float(h.config.rate_hz), clock.now())
+            jumps = clock.jumps_back
+            due = min(h.schedule.next_s for h in self.hosted if h.schedule is not None)
+            try:
+                now = clock.wait_until(due - 1e-9, _StopAfter(self.stop_event, STATUS_PERIOD_S), jumps)
+            except StopRequested:
+                continue
+            except ClockJumpedBack:
+                now = clock.now()
+            if clock.jumps_back != jumps:
+                # The simulator restarted: time-dependent state is void. Re-activate the services (their activate()
+                # resets that state) and re-sync the loop on the new timeline.
+                self.log.warning("the clock went back to %.3f s: re-activating", now)
+                for h in self.hosted:
+                    h.service.deactivate()
+                    h.service.activate()
+                    h.schedule = None
+                continue
+            for h in self.hosted:
+                schedule = h.schedule
+                assert schedule is not None
+                missed = schedule.missed(now)
+                if not schedule.due(now):
+                    continue
+                h.stats.overruns += missed
+                self._apply_config(h)
+                self._step(h, now)
+                self._note_starved(h, h.service.starved(), now)
+                if h.reporter is not None:
+                    h.reporter.ready(now, schedule.next_s)
+
+    def _wait_until_started(self, send_status: Callable[[], None]) -> None:
+        """Hold the services back, their statuses going out every second, until each has what it needs to step
+        (:meth:`Service.starting`); each says once what it waits for.
 
         Raises:
             StopRequested: the runner was stopped meanwhile.
         """
         next_status = time.monotonic()
-        while waiting := service.starting():
-            if waiting != self.waiting_for:
-                self.log.info("waiting for %s", waiting)
-                self.waiting_for = waiting
+        while True:
+            waiting = False
+            for h in self.hosted:
+                lacks = h.service.starting()
+                if lacks and lacks != h.waiting_for:
+                    h.log.info("waiting for %s", lacks)
+                h.waiting_for = lacks
+                waiting = waiting or bool(lacks)
+            if not waiting:
+                return
             if time.monotonic() >= next_status:
                 send_status()
                 next_status += STATUS_PERIOD_S
             if self.stop_event.wait(_STARTING_POLL_S):
                 raise StopRequested
-        self.waiting_for = ""
 
-    def _note_starved(self, waiting: str, now: float) -> None:
-        """Keep what the service lacks for the status, once it has lacked something for :data:`STARVED_GRACE_S`;
+    @staticmethod
+    def _note_starved(h: _Hosted, waiting: str, now: float) -> None:
+        """Keep what a service lacks for its status, once it has lacked something for :data:`STARVED_GRACE_S`;
         log when that starts, changes and ends."""
         if not waiting:
-            self._lacking_since = math.nan
-        elif math.isnan(self._lacking_since):
-            self._lacking_since = now
-        if waiting and now - self._lacking_since < STARVED_GRACE_S:
+            h.lacking_since = math.nan
+        elif math.isnan(h.lacking_since):
+            h.lacking_since = now
+        if waiting and now - h.lacking_since < STARVED_GRACE_S:
             return
-        if waiting == self.waiting_for:
+        if waiting == h.waiting_for:
             return
         if waiting:
-            self.log.info("waiting for %s", waiting)
+            h.log.info("waiting for %s", waiting)
         else:
-            self.log.info("no longer waiting for %s", self.waiting_for)
-        self.waiting_for = waiting
+            h.log.info("no longer waiting for %s", h.waiting_for)
+        h.waiting_for = waiting
 
-    def _set_param(self, request: str) -> dict[str, Any]:
+    def _set_param(self, h: _Hosted, request: str) -> dict[str, Any]:
         """``set_param``: request JSON ``{"key": K, "value": V}``; validates V like the TOML file (type, range) for a
-        key of the service's ``runtime_settable`` and queues the new config for the next step. Returns
+        key of the service's ``runtime_settable`` and queues the new config for its next step. Returns
         ``{"key", "value", "previous"}``.
 
         Raises:
@@ -389,33 +426,31 @@ class ServiceRunner:
             key, value = data["key"], data["value"]
         except (ValueError, TypeError, KeyError) as exc:
             raise ValueError(f'request must be JSON {{"key": ..., "value": ...}}: {exc}') from None
-        settable = sorted(self.service_cls.runtime_settable)
+        settable = sorted(h.unit.service_cls.runtime_settable)
         if key not in settable:
-            raise ValueError(
-                f"{self.name}.{key} cannot be set while running; settable: {', '.join(settable) or 'none'}"
-            )
+            raise ValueError(f"{h.name}.{key} cannot be set while running; settable: {', '.join(settable) or 'none'}")
         with self._config_lock:
-            current = self._next_config if self._next_config is not None else self.config
+            current = h.next_config if h.next_config is not None else h.config
             values = config_to_dict(current)
             previous = values[key]
             values[key] = value
-            new = build_config(type(current), values, where=f"{self.name}.{key}")  # ConfigError is a ValueError
-            self._next_config = new
+            new = build_config(type(current), values, where=f"{h.name}.{key}")  # ConfigError is a ValueError
+            h.next_config = new
         return {"key": key, "value": config_to_dict(new)[key], "previous": previous}
 
-    def _apply_config(self, service: Service[Any]) -> None:
+    def _apply_config(self, h: _Hosted) -> None:
         """Swap in a config set through ``set_param`` (between two steps, in the loop's thread)."""
         with self._config_lock:
-            new, self._next_config = self._next_config, None
+            new, h.next_config = h.next_config, None
         if new is None:
             return
-        changed = {k: v for k, v in config_to_dict(new).items() if config_to_dict(self.config)[k] != v}
-        self.config = service.config = new
-        self.log.info("parameters set: %s", ", ".join(f"{k} = {v!r}" for k, v in changed.items()) or "no change")
+        changed = {k: v for k, v in config_to_dict(new).items() if config_to_dict(h.config)[k] != v}
+        h.config = h.service.config = new
+        h.log.info("parameters set: %s", ", ".join(f"{k} = {v!r}" for k, v in changed.items()) or "no change")
 
     def _long_step_heartbeat(self, send_status: Callable[[], None]) -> None:
         """While a step runs longer than a status period (and at most :data:`STEP_HEARTBEAT_LIMIT_S`), send the
-        status every period from this thread, and say once per step in the log what holds the loop."""
+        statuses every period from this thread, and say once per step in the log what holds the loop."""
         warned: float | None = None
         while not self.stop_event.wait(STATUS_PERIOD_S):
             started = self._step_started
@@ -434,39 +469,25 @@ class ServiceRunner:
                 )
             send_status()
 
-    def _step(self, service: Service[Any], now: float) -> None:
+    def _step(self, h: _Hosted, now: float) -> None:
         t0 = time.perf_counter()
+        cpu0 = time.thread_time()
         self._step_started = time.monotonic()
+        s = h.stats
         try:
-            service.step(now)
+            h.service.step(now)
         except Exception as exc:
-            self.stats.step_errors += 1
-            self.stats.last_error = f"{type(exc).__name__}: {exc}"
-            if self.stats.step_errors <= 10 or self.stats.step_errors % 100 == 0:
-                self.log.exception("step failed (%d so far)", self.stats.step_errors)
+            s.step_errors += 1
+            s.last_error = f"{type(exc).__name__}: {exc}"
+            if s.step_errors <= 10 or s.step_errors % 100 == 0:
+                h.log.exception("step failed (%d so far)", s.step_errors)
         self._step_started = None
         dt = time.perf_counter() - t0
-        s = self.stats
+        s.step_cpu_s += time.thread_time() - cpu0
         s.steps += 1
         s.period_steps += 1
         s.step_time_sum_s += dt
         s.step_time_max_s = max(s.step_time_max_s, dt)
-
-
-class _LockstepReport:
-    """A sim-time service's part in the lockstep barrier: its token, and a report after every step."""
-
-    def __init__(self, bus: Bus, participant: str) -> None:
-        self._pub = bus.publisher("lockstep", service=participant)
-        self._msg = msg_class("mjnav_msgs/msg/LockstepReady")
-        self._participant = participant
-        bus.declare_lockstep(participant)
-
-    def ready(self, done: float, ready_until: float) -> None:
-        """Report the step at sim time ``done`` finished; the next one is due at ``ready_until``."""
-        self._pub.put(
-            self._msg(header=ros.header(done, ""), participant=self._participant, ready_until=ros.time_msg(ready_until))
-        )
 
 
 class _StopAfter:

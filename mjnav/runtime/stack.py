@@ -9,6 +9,15 @@
     class = "mjnav.services.sim:SimService"       # module:Class of the Service subclass
     config = "sim.toml"                           # relative to the stack file
     restarts = 3                                  # how often the launcher restarts it after a crash
+
+    [[container]]                                 # optional: services that share one process
+    name = "nav"                                  # the process's name (``mjnav run nav``)
+    services = ["slam", "mapper", "planner"]      # stepped in stack order, on one clock (sim or wall time)
+    restarts = 3                                  # the container restarts as a unit
+
+How services are packed into processes is a deployment choice (ROS 2's composition): the services of a container
+share one Zenoh session and one clock, and what they send each other stays in the process; every service that is
+in no container runs in a process of its own. ``mjnav up --process-per-service`` ignores the containers.
 """
 
 from __future__ import annotations
@@ -16,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -88,12 +97,49 @@ class ServiceSpec:
 
 
 @dataclass(frozen=True, slots=True)
+class ProcessSpec:
+    """One process of a deployment: a service alone, or the services of a container.
+
+    Attributes:
+        name: the container's name, or the service's when it runs alone.
+        services: what it hosts, in stack order.
+        restarts: restarts the launcher allows after crashes (the process restarts as a unit).
+    """
+
+    name: str
+    services: tuple[ServiceSpec, ...]
+    restarts: int
+
+    @property
+    def container(self) -> bool:
+        """Whether it hosts several services."""
+        return len(self.services) > 1
+
+    def service_names(self) -> list[str]:
+        """Names of the services it hosts."""
+        return [s.name for s in self.services]
+
+    def check_clocks(self) -> None:
+        """The services of one process step on one clock.
+
+        Raises:
+            ConfigError: a container mixing sim-time and wall-time services.
+        """
+        kinds = {spec.name: spec.load_class().uses_sim_time for spec in self.services}
+        if len(set(kinds.values())) > 1:
+            clocks = ", ".join(f"{n} ({'sim' if sim else 'wall'} time)" for n, sim in kinds.items())
+            raise ConfigError(f"container {self.name}: its services must step on one clock, sim or wall time: {clocks}")
+
+
+@dataclass(frozen=True, slots=True)
 class Stack:
-    """The services to run, in start order (the launcher stops them in reverse)."""
+    """The services to run, in start order (the launcher stops them in reverse), and the containers that pack some
+    of them into shared processes."""
 
     path: Path
     namespace: str
     services: tuple[ServiceSpec, ...]
+    containers: tuple[tuple[str, tuple[str, ...], int], ...] = ()  # (name, service names, restarts)
 
     def names(self) -> list[str]:
         """Service names in start order."""
@@ -130,14 +176,55 @@ class Stack:
             self.get(name)
         return [s for s in self.services if s.name in only]
 
+    def container(self, name: str) -> ProcessSpec | None:
+        """The container called ``name`` with all its services (None when there is none)."""
+        for cname, members, restarts in self.containers:
+            if cname == name:
+                return ProcessSpec(cname, tuple(self.get(m) for m in members), restarts)
+        return None
+
+    def processes(self, specs: list[ServiceSpec], *, packed: bool = True) -> list[ProcessSpec]:
+        """How ``specs`` (from :meth:`select`) run: the selected members of each container in one process (with
+        ``packed``), in the container's order, every other service alone (so is a container's only selected member);
+        processes in start order (a container where its first member is).
+
+        Raises:
+            ConfigError: a container mixing sim-time and wall-time services.
+        """
+        where = {m: (cname, restarts) for cname, members, restarts in self.containers for m in members}
+        rank = {m: i for _, members, _ in self.containers for i, m in enumerate(members)}
+        out: list[ProcessSpec] = []
+        placed: dict[str, int] = {}  # container name -> index in out
+        for spec in specs:
+            home = where.get(spec.name) if packed else None
+            if home is None:
+                out.append(ProcessSpec(spec.name, (spec,), spec.restarts))
+            elif home[0] in placed:
+                i = placed[home[0]]
+                out[i] = ProcessSpec(out[i].name, (*out[i].services, spec), out[i].restarts)
+            else:
+                placed[home[0]] = len(out)
+                out.append(ProcessSpec(home[0], (spec,), home[1]))
+        # a container steps its services in the order it lists them; one with a single selected member is that
+        # service alone
+        out = [
+            replace(p, services=tuple(sorted(p.services, key=lambda s: rank[s.name])))
+            if p.container
+            else ProcessSpec(p.services[0].name, p.services, p.services[0].restarts)
+            for p in out
+        ]
+        for proc in out:
+            proc.check_clocks()
+        return out
+
 
 def load_stack(path: str | Path | None = None) -> Stack:
     """Read a stack file (default ``services/stack.toml``)."""
     p = Path(path) if path else default_stack_file()
     data = read_toml(p)
-    unknown = sorted(set(data) - {"namespace", "service"})
+    unknown = sorted(set(data) - {"namespace", "service", "container"})
     if unknown:
-        raise ConfigError(f"{p}: unknown key(s) {unknown}; expected 'namespace' and [[service]] tables")
+        raise ConfigError(f"{p}: unknown key(s) {unknown}; expected 'namespace', [[service]] and [[container]] tables")
     namespace = data.get("namespace", DEFAULT_NAMESPACE)
     try:
         check_namespace(namespace)
@@ -157,15 +244,46 @@ def load_stack(path: str | Path | None = None) -> Stack:
             raise ConfigError(f"{where}: duplicate service name {name!r}")
         if not isinstance(class_path, str):
             raise ConfigError(f"{where}: 'class' (module:Class) is required")
-        restarts = entry.get("restarts", 3)
-        if isinstance(restarts, bool) or not isinstance(restarts, int) or restarts < 0:
-            raise ConfigError(f"{where}: 'restarts' must be a non-negative integer")
+        restarts = _restarts(entry, where)
         config = entry.get("config")
         specs.append(ServiceSpec(name, class_path, (p.parent / config) if config else None, restarts))
         seen.add(name)
     if not specs:
         raise ConfigError(f"{p}: defines no [[service]]")
-    return Stack(p, namespace, tuple(specs))
+    return Stack(p, namespace, tuple(specs), _containers(p, data.get("container", []), seen))
+
+
+def _restarts(entry: dict[str, Any], where: str) -> int:
+    restarts = entry.get("restarts", 3)
+    if isinstance(restarts, bool) or not isinstance(restarts, int) or restarts < 0:
+        raise ConfigError(f"{where}: 'restarts' must be a non-negative integer")
+    return restarts
+
+
+def _containers(p: Path, entries: list[Any], services: set[str]) -> tuple[tuple[str, tuple[str, ...], int], ...]:
+    """The ``[[container]]`` tables: each a new name and at least one service of the stack, no service in two."""
+    out: list[tuple[str, tuple[str, ...], int]] = []
+    housed: dict[str, str] = {}
+    for i, entry in enumerate(entries):
+        where = f"{p}: container #{i + 1}"
+        unknown = sorted(set(entry) - {"name", "services", "restarts"})
+        if unknown:
+            raise ConfigError(f"{where}: unknown key(s) {unknown}; expected name, services, restarts")
+        name, members = entry.get("name"), entry.get("services")
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ConfigError(f"{where}: 'name' must be an identifier, got {name!r}")
+        if name in services or any(name == c for c, _, _ in out):
+            raise ConfigError(f"{where}: the name {name!r} is taken by a service or another container")
+        if not (isinstance(members, list) and members and all(isinstance(m, str) for m in members)):
+            raise ConfigError(f"{where}: 'services' must be a non-empty list of service names")
+        for m in members:
+            if m not in services:
+                raise ConfigError(f"{where}: no service {m!r} in the stack; services: {', '.join(sorted(services))}")
+            if m in housed:
+                raise ConfigError(f"{where}: {m} is already in container {housed[m]}")
+            housed[m] = name
+        out.append((name, tuple(members), _restarts(entry, where)))
+    return tuple(out)
 
 
 def add_service_overrides(stack: Stack, items: list[str], overrides: dict[str, list[str]]) -> None:

@@ -7,9 +7,13 @@ import os
 import signal
 from pathlib import Path
 
+import pytest
+
 from mjnav.bus import Bus, BusConfig
 from tests.conftest import free_port
 from tests.runtime.test_processes import STACK, _mjnav
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 
 def _proc(pid: int) -> tuple[str, int, str]:

@@ -48,6 +48,7 @@ def service(router_endpoint: str) -> Iterator[subprocess.Popen[str]]:
     proc.communicate(timeout=10)
 
 
+@pytest.mark.e2e
 def test_service_process_decodes_rejects_and_survives(service: subprocess.Popen[str], peer: Peer) -> None:
     me = peer()
     alive: dict[str, bool] = {}
@@ -80,6 +81,7 @@ def test_service_process_decodes_rejects_and_survives(service: subprocess.Popen[
     assert "rejected message on robot0/cmd_vel" in out
 
 
+@pytest.mark.e2e
 def test_launcher_restarts_a_killed_service_and_stops_cleanly(peer: Peer) -> None:
     port = free_port()
     launcher = _mjnav("up", "--stack", str(STACK), "--port", str(port), "--headless")
@@ -118,7 +120,9 @@ def test_a_service_compiling_its_first_step_is_not_taken_for_hung() -> None:
     launcher = Launcher(load_stack(STACK), hung_timeout_s=2.0)
     proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
     try:
-        child = _Child(launcher.specs[0], proc=proc, last_status=100.0)
+        spec = launcher.processes[0]
+        name = spec.services[0].name
+        child = _Child(spec, proc=proc, last_status={name: 100.0})
         launcher._check_hung(child, proc, now=100.0 + 10.0)  # silent 10 s, no step yet: starting
         assert proc.poll() is None
         launcher._check_hung(child, proc, now=100.0 + FIRST_STEP_TIMEOUT_S + 1.0)
@@ -129,7 +133,7 @@ def test_a_service_compiling_its_first_step_is_not_taken_for_hung() -> None:
         proc.wait(10.0)
     stepped = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
     try:
-        child = _Child(launcher.specs[0], proc=stepped, last_status=100.0, stepped=True)
+        child = _Child(spec, proc=stepped, last_status={name: 100.0}, stepped={name})
         launcher._check_hung(child, stepped, now=100.0 + 3.0)  # silent 3 s after stepping: hung
         assert stepped.wait(10.0) == -signal.SIGKILL
     finally:
@@ -146,6 +150,7 @@ def _running(pid: int) -> bool:
     return state != "Z"  # a zombie has exited (its parent has not reaped it)
 
 
+@pytest.mark.e2e
 def test_services_do_not_outlive_a_killed_launcher() -> None:
     port = free_port()
     launcher = _mjnav("up", "--stack", str(STACK), "--port", str(port), "--headless")
@@ -164,6 +169,7 @@ def test_services_do_not_outlive_a_killed_launcher() -> None:
         launcher.communicate(timeout=10)
 
 
+@pytest.mark.e2e
 def test_launcher_gives_up_on_a_service_that_keeps_failing() -> None:
     port = free_port()
     launcher = _mjnav("up", "--stack", str(STACK), "--port", str(port), "--set", "kinematic.fail_in_configure=true")
@@ -181,6 +187,7 @@ def test_launcher_gives_up_on_a_service_that_keeps_failing() -> None:
     assert out.count("restarting in") == 2 and "giving up" in out
 
 
+@pytest.mark.e2e
 def test_pub_puts_twists_an_outside_decoder_reads_exactly(router_endpoint: str) -> None:
     import zenoh
 
@@ -223,6 +230,7 @@ def test_pub_puts_twists_an_outside_decoder_reads_exactly(router_endpoint: str) 
         assert (twist.angular.x, twist.angular.y, twist.angular.z) == (0.0, 0.0, -0.5)
 
 
+@pytest.mark.e2e
 def test_pub_rejects_bad_yaml_with_a_clear_message() -> None:
     proc = _mjnav("pub", "robot0/cmd_vel", "--yaml", "{linear: {q: 1}}", "--connect", "tcp/127.0.0.1:1")
     out = proc.communicate(timeout=60)[0]

@@ -1,4 +1,5 @@
-"""Lockstep: the same seed gives the same mission to the last bit, on an idle machine and beside CPU hogs."""
+"""Lockstep: the same seed gives the same mission to the last bit, on an idle machine and beside CPU hogs, whether
+the services share processes (the stack's containers) or run one per process."""
 
 from __future__ import annotations
 
@@ -9,19 +10,23 @@ import subprocess
 import sys
 from typing import Any
 
+import pytest
+
 from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import ros
 from tests.conftest import free_port
 from tests.services.test_navigation import _mjnav, up_process
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 #: Figures that depend on the machine (wall time), not on the mission.
 WALL_KEYS = {"wall_s", "achieved_rtf"}
 
 
-def _demo(seed: int) -> dict[str, Any]:
+def _demo(seed: int, *extra: str) -> dict[str, Any]:
     proc = _mjnav(
         "demo", "--world", "rooms", "--rtf", "max", "--seed", str(seed), "--json", "--headless",
-        "--port", str(free_port()),
+        "--port", str(free_port()), *extra,
     )  # fmt: skip
     stdout, _ = proc.communicate(timeout=600)
     # On failure: the demo's own lines (goal outcomes, errors) wherever they are, then the end of the log.
@@ -31,11 +36,13 @@ def _demo(seed: int) -> dict[str, Any]:
     return summary
 
 
-def test_same_seed_same_mission_whatever_the_load() -> None:
-    idle = _demo(seed=3)
+def test_same_seed_same_mission_whatever_the_packing_and_the_load() -> None:
+    """Composed (the stack file's containers) on an idle machine, then one service per process beside two busy
+    loops: the same mission to the last bit."""
+    idle = _demo(3)
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
     try:
-        busy = _demo(seed=3)
+        busy = _demo(3, "--process-per-service")
     finally:
         for hog in hogs:
             hog.kill()
@@ -46,6 +53,7 @@ def test_same_seed_same_mission_whatever_the_load() -> None:
     }
     # Bit for bit: the unrounded figures of the goal and the final pose, not only the rounded summary.
     assert busy["goals"] == idle["goals"] and busy["final_pose"] == idle["final_pose"]
+    assert busy["time_s"] == idle["time_s"] and busy["path_length_m"] == idle["path_length_m"]
     assert len(idle["final_pose"]) == 3 and idle["time_s"] > 0 and idle["achieved_rtf"] > 0
 
 
