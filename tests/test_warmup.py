@@ -6,6 +6,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 REPO = Path(__file__).resolve().parent.parent
 
 _FRESH = """

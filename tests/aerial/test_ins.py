@@ -100,6 +100,7 @@ def test_stale_and_future_fixes_are_refused() -> None:
         ins.update_gps(np.zeros(3), stamp_s=ins.t_s + 0.1)
 
 
+@pytest.mark.e2e
 def test_nees_within_chi2_bounds() -> None:
     """Monte Carlo over 40 seeded flights: the run-averaged NEES stays inside the 95% χ²₉ bounds."""
     runs, nees = 40, []

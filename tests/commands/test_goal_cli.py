@@ -56,6 +56,7 @@ def test_waypoint_file(tmp_path: Path) -> None:
         read_waypoints(path)
 
 
+@pytest.mark.e2e
 def test_pub_on_an_event_key_confirms_delivery_or_fails_loudly(peer: Callable[..., Bus], router_endpoint: str) -> None:
     goal = "{header: {frame_id: map}, pose: {position: {x: 1.0, y: 1.0}}}"
     viewer = peer()
@@ -69,6 +70,7 @@ def test_pub_on_an_event_key_confirms_delivery_or_fails_loudly(peer: Callable[..
     assert "received by planner (30)" in done.stderr
 
 
+@pytest.mark.e2e
 def test_goal_and_cancel_without_a_router_exit_3_and_say_so() -> None:
     nobody = f"tcp/127.0.0.1:{free_port()}"
     for argv in (["goal", "1", "1", "--wait"], ["cancel"]):
@@ -79,12 +81,14 @@ def test_goal_and_cancel_without_a_router_exit_3_and_say_so() -> None:
         assert proc.returncode == 1 and "no Zenoh router reachable" in proc.stderr, proc.stderr
 
 
+@pytest.mark.e2e
 def test_goal_rejects_bad_arguments() -> None:
     for argv in (["goal"], ["goal", "1", "2", "--waypoints", "w.txt"], ["goal", "1", "nan"]):
         proc = _mjnav(*argv, "--connect", "tcp/127.0.0.1:1")
         assert proc.returncode == 2, proc.stderr
 
 
+@pytest.mark.e2e
 def test_a_closed_pipe_ends_a_command_quietly(tmp_path: Path) -> None:
     grid = tmp_path / "open.map"
     grid.write_text("type octile\nheight 20\nwidth 20\nmap\n" + ("." * 20 + "\n") * 20)

@@ -15,6 +15,8 @@ from mjnav.bus import Bus, wait_until
 from mjnav.msgs import from_dict
 from tests.conftest import REPO, free_port
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 STACK = REPO / "tests" / "services" / "stack.toml"
 
 

@@ -34,6 +34,7 @@ def test_keys_set_direction_and_speeds() -> None:
     assert state.command() == (0.0, 0.0)
 
 
+@pytest.mark.e2e
 def test_teleop_through_a_pty_publishes_the_keys(peer: Callable[..., Bus], router_endpoint: str) -> None:
     me = peer()
     got: list[tuple[float, float]] = []
@@ -84,6 +85,7 @@ def test_teleop_through_a_pty_publishes_the_keys(peer: Callable[..., Bus], route
         reader.join(5)
 
 
+@pytest.mark.e2e
 def test_teleop_needs_a_terminal() -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "mjnav", "teleop", "--connect", "tcp/127.0.0.1:1"],

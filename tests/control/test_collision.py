@@ -220,6 +220,7 @@ def test_static_objects_seen_while_driving_do_not_move() -> None:
         assert not previous.moving().any(), (k, previous.points[previous.moving()])
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_cart_passing_close_in_front_keeps_moving(seed: int) -> None:
     """A cart passes 0.55 m in front of a robot waiting at the edge of its lane (the warehouse's cross aisle):

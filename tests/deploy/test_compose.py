@@ -147,6 +147,7 @@ def resolved_compose() -> dict[str, Any]:
     return services
 
 
+@pytest.mark.e2e
 def test_docker_compose_validates_the_file() -> None:
     resolved = resolved_compose()
     assert set(resolved) == {"router", *_expected()}

@@ -15,10 +15,14 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
+import pytest
+
 from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.runtime.stack import load_stack
 from tests.conftest import REPO, free_port
 from tests.deploy.test_compose import resolved_compose
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 GOAL = ("3.8", "2.2")  # the rooms world's goal (services/sim.toml runs rooms)
 #: Sim time the goal leaves at (`mjnav goal --at`): the services are up well before at rtf 1 (sim.toml).

@@ -8,9 +8,13 @@ import subprocess
 import sys
 import threading
 
+import pytest
+
 from mjnav.bus import Bus, BusConfig
 from mjnav.msgs import from_dict
 from tests.conftest import REPO, free_port
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 
 def _env() -> dict[str, str]:

@@ -16,6 +16,8 @@ from mjnav.bus.certs import make_certificates
 from mjnav.bus.config import tls_files
 from tests.conftest import REPO, free_port
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 
 def _mjnav(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("MJNAV_ZENOH_")}

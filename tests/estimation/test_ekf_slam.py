@@ -96,6 +96,7 @@ def test_empty_and_bad_observations() -> None:
         slam.predict(1.0, 0.0, -0.1)
 
 
+@pytest.mark.e2e
 def test_monte_carlo_nees_and_associations_on_the_loop_world() -> None:
     """50 seeded runs of one 80-step loop: pose ANEES inside the 95% χ² band, ≥ 99% correct associations."""
     runs = 50
@@ -110,6 +111,7 @@ def test_monte_carlo_nees_and_associations_on_the_loop_world() -> None:
     assert float(np.mean([s.landmark_rmse_m for s in scores])) < 0.4
 
 
+@pytest.mark.e2e
 def test_jcbb_association_on_the_loop_world() -> None:
     scores = [
         evaluate_slam(_slam(association="jcbb"), simulate_loop_world(np.random.default_rng(seed)))

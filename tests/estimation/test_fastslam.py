@@ -123,6 +123,7 @@ def test_ambiguous_observation_is_discarded_and_bad_input_rejected() -> None:
         _fast(resample_threshold=1.5)
 
 
+@pytest.mark.e2e
 def test_monte_carlo_nees_on_the_low_odometry_noise_half_loop() -> None:
     """50 seeded runs, 500 particles, the first 40 steps of the loop at FASTSLAM_WORLD_* noise: ANEES in band."""
     runs = 50

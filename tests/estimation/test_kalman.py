@@ -115,6 +115,7 @@ def test_steps_return_fresh_arrays() -> None:
     assert np.array_equal(saved, [1.0, -1.0, 0.5, 0.2])
 
 
+@pytest.mark.e2e
 def test_nis_is_chi2_on_a_consistent_simulation() -> None:
     """The filter run on data drawn from its own model gives mean NIS ≈ m (= 2)."""
     kf, rng = _small(1)

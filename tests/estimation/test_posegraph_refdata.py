@@ -35,7 +35,7 @@ def test_published_optimum_and_certificate(refdata: Path, name: str) -> None:
     check(refdata, name)
 
 
-@pytest.mark.slow
+@pytest.mark.e2e
 def test_city10000(refdata: Path) -> None:
     check(refdata, "city10000")
 

@@ -32,6 +32,7 @@ def _run(loop_candidates: int, seed: int) -> tuple[GraphSlam, np.ndarray, np.nda
     return slam, truth, odom
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("seed", [0, 1])
 def test_loop_closure_is_found_and_lowers_the_error(seed: int) -> None:
     with_loops, truth, odom = _run(2, seed)
@@ -57,6 +58,7 @@ def test_loop_closure_is_found_and_lowers_the_error(seed: int) -> None:
     assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
 
 
+@pytest.mark.e2e
 def test_a_pickled_slam_continues_exactly_and_leaves_its_caches_behind() -> None:
     """A checkpoint (pickle) holds the state, not the caches derived from it: restored half-way round the ring,
     after loop closures filled the submap cache, the SLAM goes on to the same poses to the last bit."""
@@ -84,6 +86,7 @@ def test_a_pickled_slam_continues_exactly_and_leaves_its_caches_behind() -> None
     assert np.array_equal(restored.trajectory()[1], slam.trajectory()[1])
 
 
+@pytest.mark.e2e
 def test_loop_edges_carry_the_scaled_match_covariance() -> None:
     with_loops, _, _ = _run(2, 0)
     graph = with_loops.pose_graph()
@@ -143,6 +146,7 @@ def _loop_errors(slam: GraphSlam, truth: np.ndarray) -> np.ndarray:
     return np.hypot(*np.array(errs).reshape(-1, 2).T)
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_a_scan_from_the_neighbouring_corridor_does_not_close_a_loop(seed: int) -> None:
     """Loop matches are scored on the part of the scan inside the space the submap observed: a scan from corridor
@@ -276,6 +280,7 @@ def test_relations() -> None:
         relative_pose_error(ref, ref, np.array([[0, 9]]))
 
 
+@pytest.mark.e2e
 def test_odometry_noise_is_seeded_and_grows_like_a_random_walk() -> None:
     ref = np.column_stack((np.linspace(0.0, 100.0, 1001), np.zeros(1001), np.zeros(1001)))
     a = corrupt_odometry(ref, np.random.default_rng(3))

@@ -41,6 +41,7 @@ def _check_outputs(out: Path, scans_expected: int) -> dict:
     return summary
 
 
+@pytest.mark.e2e
 def test_carmen_slice(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "intel"
     assert main(["slam", "--carmen", str(_intel()), "--limit", "120", "--seed", "1", "--quiet", "--out", str(out)]) == 0
@@ -56,6 +57,7 @@ def test_carmen_slice(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert "error consecutive:" in capsys.readouterr().out
 
 
+@pytest.mark.e2e
 def test_bag(tmp_path: Path) -> None:
     from mjnav.bag import BagWriter
     from mjnav.geometry import Pose2D

@@ -24,12 +24,15 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import pytest
 import zenoh
 from rosbags.typesys import Stores, get_typestore
 
 from mjnav.bus import Bus, BusConfig
 from mjnav.runtime.stack import load_stack
 from tests.conftest import REPO, free_port
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 TYPES = {
     "scan": "sensor_msgs/msg/LaserScan",

@@ -95,6 +95,7 @@ def _same(a: Any, b: Any) -> bool:
     return type(a) is type(b) and a == b
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("typename", ALL_TYPES)
 def test_compiled_codec_matches_rosbags_on_random_messages(typename: str) -> None:
     codec = compiled(STORE, typename)

@@ -25,6 +25,7 @@ MAPS = [
 SAMPLE = 20  # per map: 17 random scenarios and the 3 longest
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("name", MAPS)
 def test_sampled_scenarios_match_published_optimum(refdata: Path, name: str) -> None:
     mai = read_movingai_map(refdata / "movingai" / f"{name}.map")

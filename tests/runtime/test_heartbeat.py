@@ -15,6 +15,8 @@ from mjnav.runtime import Service
 from mjnav.runtime import runner as runner_module
 from mjnav.runtime.runner import ServiceRunner
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 GATE = threading.Event()  # the first step blocks until the test opens it
 IN_STEP = threading.Event()
 

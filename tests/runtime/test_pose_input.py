@@ -53,6 +53,7 @@ def test_slam_source_composes_map_to_odom_with_odom_to_base_link_both_from_tf(pe
     assert at.x == pytest.approx((correction * Pose2D(0.95, 0.5, 0.3)).x, abs=1e-9)
 
 
+@pytest.mark.e2e
 def test_slam_source_needs_no_odom_topic_and_ignores_other_transforms(peer: Callable[..., Bus]) -> None:
     reader, me = peer(), peer()
     pose_in = PoseInput(reader, "slam")

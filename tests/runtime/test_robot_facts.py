@@ -59,6 +59,7 @@ def _numbers_in(value: object) -> list[float]:
     return []
 
 
+@pytest.mark.e2e
 def test_no_robot_number_is_written_outside_mjcf() -> None:
     numbers = _robot_numbers()
     assert numbers == {  # the bundled robot, as its MJCF says

@@ -24,6 +24,8 @@ from mjnav.runtime.mission import MissionClient
 from mjnav.runtime.stack import load_stack, services_dir
 from tests.services.test_navigation import RTF, SERVICES, up_process
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 #: Settings that make every service declare everything it can (the warehouse has moving obstacles) and start no
 #: server.
 _SETTINGS = {"sim": {"world": "warehouse"}, "viz": {"serve": False}, "uav_viz": {"serve": False}}

@@ -18,6 +18,8 @@ from mjnav.sim.worlds import world_info
 from tests.conftest import free_port
 from tests.services.test_navigation import _mjnav
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 DATA = Path(__file__).parent / "data"
 
 

@@ -5,9 +5,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import pytest
+
 from mjnav.bus import Bus, Subscription, wait_until
 from mjnav.msgs import ros
 from mjnav.services.sim import SimBridge, SimConfig
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 
 class _Wheels:

@@ -28,6 +28,8 @@ from mjnav.runtime.mission import GoalOutcome, MissionClient
 from tests.conftest import REPO, free_port
 from tests.services.test_navigation import SERVICES, up_process
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
 GOAL = (3.8, 2.2)  # rooms: from the start, through a door, ~7 m
 

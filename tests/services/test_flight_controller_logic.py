@@ -21,6 +21,7 @@ def _mocap(t: float, z: float) -> object:
     return uav_msgs.odometry3d(t, "map", "base_link", [0.0, 0.0, z], [1.0, 0.0, 0.0, 0.0], [0.0] * 3, [0.0] * 3)
 
 
+@pytest.mark.e2e
 def test_arming_offboard_failsafe_and_landing(peer: Callable[..., Bus]) -> None:
     h = Harness(FlightControllerService, peer, ("rotor_cmd", "flight_state"), rate_hz=50.0)
     fc = h.service
@@ -80,6 +81,7 @@ def test_arm_false_lands_a_flying_vehicle_and_disarms_a_landed_one(peer: Callabl
     assert fc.state == "landing"
 
 
+@pytest.mark.e2e
 def test_a_peers_output_of_the_same_step_waits_for_the_next_step(peer: Callable[..., Bus]) -> None:
     # In lockstep the INS's estimate and the flight client's trajectory of step t reach the controller before or
     # after clock t as the router happens to schedule them; a step at t must use what was made before t.

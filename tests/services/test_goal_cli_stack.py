@@ -9,11 +9,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from mjnav.bus import wait_until
 from mjnav.geometry import wrap_angle
 from mjnav.msgs import ros
 from tests.conftest import REPO
 from tests.services.test_navigation import running_stack
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 
 def _mjnav(port: int, *args: str) -> subprocess.CompletedProcess[str]:

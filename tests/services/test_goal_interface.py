@@ -49,6 +49,7 @@ def _planner(peer: Peer) -> Harness:
     return h
 
 
+@pytest.mark.e2e
 def test_navigate_accepts_with_the_id_its_statuses_carry(peer: Peer) -> None:
     h = _planner(peer)
     reply = h.world.call("navigate", _request(3.45, 3.55))
@@ -59,6 +60,7 @@ def test_navigate_accepts_with_the_id_its_statuses_carry(peer: Peer) -> None:
     assert len(h.received["plan"][-1].poses) > 0
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize(
     ("x", "y", "frame", "code", "words"),
     [
@@ -79,6 +81,7 @@ def test_navigate_rejects_with_a_typed_reason(
     assert h.service.goal is None and h.service.next_id == 1  # nothing accepted, no id spent
 
 
+@pytest.mark.e2e
 def test_a_hundred_goals_in_a_row_none_lost(peer: Peer) -> None:
     """Requests between two steps all get distinct ids and each is accepted in order (the newer supersedes)."""
     h = _planner(peer)
@@ -100,6 +103,7 @@ def test_a_hundred_goals_in_a_row_none_lost(peer: Peer) -> None:
     assert h.service.goal is not None and h.service.goal.goal_id == 100
 
 
+@pytest.mark.e2e
 def test_an_accepted_goal_survives_a_restart_before_the_next_step(
     peer: Peer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -113,6 +117,7 @@ def test_an_accepted_goal_survives_a_restart_before_the_next_step(
     assert second.service.next_id == reply.goal_id + 1
 
 
+@pytest.mark.e2e
 def test_event_topics_confirm_delivery_to_the_named_subscribers(peer: Peer) -> None:
     h = _planner(peer)
     goal = ros.pose_stamped(0.0, "map", Pose2D(3.45, 3.55, 0.0))
@@ -130,6 +135,7 @@ def test_event_topics_confirm_delivery_to_the_named_subscribers(peer: Peer) -> N
     assert h.received["goal_status"][-1].state == STATUS.STATE_CANCELED and h.service.goal is None
 
 
+@pytest.mark.e2e
 def test_a_lost_receipt_is_recovered_by_a_resend_that_is_delivered_once(peer: Peer) -> None:
     """A receipt lost on the way back (here the planner's first one is dropped) gets the event sent again with the
     same request id; the planner confirms the repeat but queues it once: three goals, three accepted."""
@@ -158,6 +164,7 @@ def test_a_lost_receipt_is_recovered_by_a_resend_that_is_delivered_once(peer: Pe
     assert accepted() == [1, 2, 3]
 
 
+@pytest.mark.e2e
 def test_an_event_nobody_named_receives_fails_loudly(peer: Peer) -> None:
     listener = peer()  # a subscriber that is not the planner (like the viewer) must not count as delivery
     listener.subscribe("goal")
@@ -193,6 +200,7 @@ def _arrivals(h: Harness) -> list[int]:
     return [f.goal_id for f in h.received["controller_feedback"] if f.state == FEEDBACK.STATE_ARRIVED]
 
 
+@pytest.mark.e2e
 def test_the_controller_turns_in_place_to_the_goal_yaw_then_reports_reached(peer: Peer) -> None:
     h = Harness(ControllerService, peer, ("cmd_vel", "controller_feedback"), pose_source="ground_truth",
                 goal_tolerance_m=0.1, yaw_goal_tolerance_rad=0.05)  # fmt: skip

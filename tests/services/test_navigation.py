@@ -31,6 +31,8 @@ from mjnav.sim.truth import static_occupancy
 from mjnav.sim.worlds import world_info
 from tests.conftest import REPO, free_port
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 SERVICES = {"sim", "slam", "mapper", "planner", "smoother", "controller", "viz"}
 STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
 RTF = 4.0

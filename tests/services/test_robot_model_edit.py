@@ -74,6 +74,7 @@ def _inscribed_width(peer: Peer, robot: str) -> float:
     return float(inside.max() + 0.025 - (-3.0))
 
 
+@pytest.mark.e2e
 def test_the_costmaps_inscribed_band_is_the_robots_radius(peer: Peer) -> None:
     stock, edited = _inscribed_width(peer, DIFFBOT), _inscribed_width(peer, EDITED)
     assert stock == pytest.approx(0.2, abs=0.05)  # 0.19 m, to the 5 cm cell
@@ -102,6 +103,7 @@ def _speed_facing_a_wall(peer: Peer, robot: str) -> float:
     return speed
 
 
+@pytest.mark.e2e
 def test_the_controllers_collision_check_keeps_the_robots_radius(peer: Peer) -> None:
     """0.25 m from the wall the stock robot (0.19 m + 0.02 m margin) may still creep on; the edited one (0.24 m)
     is already inside its margin and must not move towards the wall."""
@@ -127,11 +129,13 @@ def _slam_error(peer: Peer, robot: str, laser_x: float) -> float:
     return worst
 
 
+@pytest.mark.e2e
 def test_slam_places_the_scans_at_the_lidar_the_description_names(peer: Peer) -> None:
     assert _slam_error(peer, EDITED, 0.05) < 0.01  # the lidar where the robot says it is
     assert _slam_error(peer, DIFFBOT, 0.05) > 0.02  # the same scans read as if from the base: the pose drifts
 
 
+@pytest.mark.e2e
 def test_the_whole_stack_drives_the_edited_robot(tmp_path: Path) -> None:
     """`mjnav demo` on the rooms world with the edited robot file: reached, no collision, the clearance measured
     with the new footprint, and SLAM's error as small as on the stock robot."""
@@ -150,6 +154,7 @@ def test_the_whole_stack_drives_the_edited_robot(tmp_path: Path) -> None:
     assert summary["min_clearance_m"] > 0.0 and summary["ate_rms_m"] < 0.02, summary
 
 
+@pytest.mark.e2e
 def test_slam_uses_no_scan_of_a_frame_the_robot_lacks(peer: Peer) -> None:
     """A scan stamped in a frame the description has not (another robot's lidar) is not placed anywhere: SLAM does
     not start on it, and its status says it has no scan to use."""

@@ -88,6 +88,7 @@ def planner(peer: Peer) -> Harness:
     return h
 
 
+@pytest.mark.e2e
 def test_planner_accepts_plans_and_supersedes_goals(planner: Harness) -> None:
     planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
     planner.step(0.0, {"goal_status": 3, "plan": 1})
@@ -140,6 +141,7 @@ def test_planner_refuses_goals_it_cannot_serve(planner: Harness) -> None:
             assert "m to (3.05, 2.05) m (cells" in last[-1].error_text, last[-1].error_text
 
 
+@pytest.mark.e2e
 def test_planner_replans_when_blocked_and_switches_only_to_a_clearly_cheaper_route(planner: Harness) -> None:
     # A wall with a gap at the top forces a detour.
     detour = _free()
@@ -182,6 +184,7 @@ def test_planner_replans_when_blocked_and_switches_only_to_a_clearly_cheaper_rou
     assert (reached.goal_id, reached.state, ros.seconds(reached.header.stamp)) == (goal_id, STATUS.STATE_REACHED, 5.1)
 
 
+@pytest.mark.e2e
 def test_smoother_keeps_every_point_inside_its_clearance_box(peer: Peer) -> None:
     h = Harness(SmootherService, peer, ("path",), max_deviation_m=0.3, margin_m=0.03)
     cells = _free()
@@ -213,6 +216,7 @@ def test_smoother_keeps_every_point_inside_its_clearance_box(peer: Peer) -> None
     np.testing.assert_allclose(bare.service.smooth(plan), resample(plan, bare.service.config.spacing_m))
 
 
+@pytest.mark.e2e
 def test_controller_goal_states(peer: Peer) -> None:
     """The controller follows the goal the planner's newest status names and reports to the planner, which owns
     the goal: it never publishes goal_status itself."""
@@ -328,6 +332,7 @@ def test_controller_on_slam_composes_map_to_odom_with_fresh_odometry(peer: Peer)
     assert h.received["cmd_vel"][-1].linear.x == 0.0
 
 
+@pytest.mark.e2e
 def test_controller_reports_no_progress(peer: Peer) -> None:
     """Nav2's progress checker: no 0.25 m of motion in 20 s and the controller gives the goal up, telling the
     planner (which fails it with ERROR_TIMEOUT)."""
@@ -350,6 +355,7 @@ def test_controller_reports_no_progress(peer: Peer) -> None:
     assert h.received["cmd_vel"][-1].linear.x == 0.0
 
 
+@pytest.mark.e2e
 def test_controller_does_not_creep_behind_a_cart_that_has_crossed_its_way(peer: Peer) -> None:
     """Proximity heuristic and moving obstacles: a cart (1.0 m x 0.7 m) crosses the robot's way 0.5 m ahead at
     0.8 m/s and has just left it; its near corner is 0.31 m from the robot's edge, in the front sector. Parked
@@ -394,6 +400,7 @@ def test_controller_does_not_creep_behind_a_cart_that_has_crossed_its_way(peer: 
     assert crossing == pytest.approx(0.5)
 
 
+@pytest.mark.e2e
 def test_planner_withdraws_the_plan_on_a_stale_costmap_and_resumes_on_a_fresh_one(planner: Harness) -> None:
     planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
     planner.step(0.0, {"goal_status": 3, "plan": 1})
@@ -407,6 +414,7 @@ def test_planner_withdraws_the_plan_on_a_stale_costmap_and_resumes_on_a_fresh_on
     assert _states(planner)[-1] == (1, STATUS.STATE_FOLLOWING, 0)
 
 
+@pytest.mark.e2e
 def test_the_planner_ends_a_goal_on_the_controllers_report(planner: Harness) -> None:
     planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
     planner.step(0.0, {"goal_status": 3, "plan": 1})
@@ -423,6 +431,7 @@ def test_the_planner_ends_a_goal_on_the_controllers_report(planner: Harness) -> 
     assert failed.error_text == "no progress: moved less" and ros.seconds(failed.header.stamp) == 0.5
 
 
+@pytest.mark.e2e
 def test_a_goal_beyond_what_the_robot_has_seen_is_planned_through_unknown_space(planner: Harness) -> None:
     """The costmap covers what the robot has seen so far; a goal 1.5 m beyond it (behind a wall the lidar has not
     looked past yet) is planned to through unknown cells, not refused."""
@@ -448,6 +457,7 @@ def test_the_planner_carries_its_route_over_to_a_grown_costmap(planner: Harness)
     )
 
 
+@pytest.mark.e2e
 def test_a_restarted_planner_resumes_its_goal_under_the_same_id(
     peer: Peer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -479,6 +489,7 @@ def test_a_restarted_planner_resumes_its_goal_under_the_same_id(
     assert third.service.goal is None and third.service.next_id == 4
 
 
+@pytest.mark.e2e
 def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
     peer: Peer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -531,6 +542,7 @@ def test_a_restarted_mapper_resumes_the_map_and_save_map_stays_in_maps_dir(
     assert not (tmp_path / "evil.yaml").exists()
 
 
+@pytest.mark.e2e
 def test_the_mapper_publishes_no_all_unknown_costmap_and_the_first_known_one_at_once(peer: Peer) -> None:
     """No costmap before a cell is known (the planner would route straight through unknown space and the robot
     set off on that route); the first goes out in the step a cell becomes known, the later ones on the
@@ -604,6 +616,7 @@ def test_slam_waits_for_initialpose_then_publishes_pose_map_and_tf(peer: Peer) -
     assert np.all(on_wall >= 65)  # the ring wall is in the map, where it is
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("use_gyro", [True, False])
 def test_slam_takes_its_heading_from_the_gyro(peer: Peer, use_gyro: bool) -> None:
     """The wheels report a 0.2 rad turn the gyro does not see (a wrong wheel separation); the scans cannot tell
@@ -623,6 +636,7 @@ def test_slam_takes_its_heading_from_the_gyro(peer: Peer, use_gyro: bool) -> Non
     assert heading == pytest.approx(0.0 if use_gyro else 0.2, abs=0.01)
 
 
+@pytest.mark.e2e
 def test_costmap_from_slams_map_with_the_newest_scan_as_obstacle_layer(peer: Peer) -> None:
     h = Harness(
         MapperService,
@@ -648,6 +662,7 @@ def test_costmap_from_slams_map_with_the_newest_scan_as_obstacle_layer(peer: Pee
     assert robot == 0  # the robot's own cell: free
 
 
+@pytest.mark.e2e
 def test_a_cart_crossing_the_view_leaves_no_trail_in_the_costmap_and_a_parked_one_is_marked(peer: Peer) -> None:
     """Scan mode: a cart drives across in front of the robot at 0.5 m/s, then parks. Its returns only clear while
     it moves (the planner would otherwise route around every place it has been), and mark once it stands."""
@@ -689,6 +704,7 @@ def test_a_cart_crossing_the_view_leaves_no_trail_in_the_costmap_and_a_parked_on
     assert occupied(2.5, 5.5) == 0
 
 
+@pytest.mark.e2e
 def test_services_that_start_late_get_the_goal_and_its_plan_from_the_transport(planner: Harness, peer: Peer) -> None:
     """Nobody re-sends: a smoother that starts after the plan went out gets it from the planner's latched plan, and
     a controller that starts after that gets the goal's status and the path from the latched topics, and drives."""
@@ -706,6 +722,7 @@ def test_services_that_start_late_get_the_goal_and_its_plan_from_the_transport(p
     assert controller.received["cmd_vel"][-1].linear.x > 0.0
 
 
+@pytest.mark.e2e
 def test_the_mapper_grows_its_grid_with_what_the_robot_sees(peer: Peer) -> None:
     """Down a 40 m corridor the grid follows the robot: it holds every cell a scan touched (returns, and free beams
     up to their range), keeps what it knew, stays on the same cells, and is the corridor's size, not the lidar's

@@ -43,6 +43,7 @@ def _saved(tmp_path: Path, scans_fed: int) -> tuple[_Ring, GraphSlam, SlamCheckp
     return ring, slam, saver
 
 
+@pytest.mark.e2e
 def test_a_restored_checkpoint_continues_exactly_and_each_save_writes_only_what_is_new(tmp_path: Path) -> None:
     ring = _Ring()
     slam = ring.new()
@@ -72,6 +73,7 @@ def test_a_restored_checkpoint_continues_exactly_and_each_save_writes_only_what_
     assert np.array_equal(restored.trajectory()[1], slam.trajectory()[1])
 
 
+@pytest.mark.e2e
 def test_a_save_cut_short_is_ignored_and_overwritten_by_the_next(tmp_path: Path) -> None:
     ring, slam, saver = _saved(tmp_path, 60)
     good = saver.log_path.stat().st_size
@@ -115,6 +117,7 @@ def test_a_log_that_lacks_what_the_state_needs_is_refused(tmp_path: Path) -> Non
     assert SlamCheckpoint(tmp_path / "nowhere").load() is None
 
 
+@pytest.mark.e2e
 def test_a_save_does_not_rewrite_what_earlier_saves_wrote(tmp_path: Path) -> None:
     ring, slam, saver = _saved(tmp_path, 60)
     n = saver.log_path.stat().st_size

@@ -12,13 +12,15 @@ from typing import Any
 
 import pytest
 
+from mjnav.aerial.trajectories import figure8_plan, hover_plan
 from mjnav.bus import Bus, BusConfig
 from mjnav.commands.fly import fly_on_bus
 from mjnav.msgs import ros
-from mjnav.runtime.flight import figure8_plan, hover_plan
 from mjnav.sim.uav import UavSimulator
 from tests.conftest import REPO, free_port
 from tests.services.test_navigation import _mjnav, up_process
+
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
 
 STACK = str(REPO / "services" / "uav_stack.toml")
 SERVICES = ["uav_sim", "ins", "flight_controller"]

@@ -35,6 +35,7 @@ def _odom_in_map(sim: Simulator) -> Pose2D:
     return sim.start_pose * sim.odometry().pose
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_odometry_drifts_but_stays_bounded_over_a_square(seed: int) -> None:
     sim = Simulator("empty", seed=seed, lidar=None, start=Pose2D(1.0, 1.0, 0.3))

@@ -19,6 +19,7 @@ def backend() -> str:
         pytest.skip(f"no offscreen OpenGL here: {exc}")
 
 
+@pytest.mark.e2e
 def test_record_cli_writes_90_frames_that_change(backend: str, tmp_path: Path) -> None:
     import imageio.v3 as iio
     import imageio_ffmpeg
@@ -38,6 +39,7 @@ def test_record_cli_writes_90_frames_that_change(backend: str, tmp_path: Path) -
     assert meta["fps"] == pytest.approx(30.0)
 
 
+@pytest.mark.e2e
 def test_sim_can_record_while_it_runs_with_the_follow_camera(backend: str, tmp_path: Path) -> None:
     import imageio.v3 as iio
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mjnav.smoothing._kernels import active_set_polish, penta_solve, smoothing_matrix_diagonal
 
@@ -23,6 +24,7 @@ def test_penta_solve_matches_dense() -> None:
         np.testing.assert_allclose(penta_solve(np.diag(p).copy(), d1, d2, rhs), np.linalg.solve(p, rhs), atol=1e-12)
 
 
+@pytest.mark.e2e
 def test_polish_accepts_the_right_active_set_and_rejects_a_wrong_one() -> None:
     # 1-D problem: min ½ dᵀPd + qᵀd, |d| <= h; the unconstrained optimum violates the box at some points
     n, ws, wd = 30, 1.0, 0.1

@@ -47,6 +47,7 @@ def _trace() -> RunTrace:
     )
 
 
+@pytest.mark.e2e
 def test_run_png_draws_the_map_trajectories_and_goal_where_they_are(tmp_path: Path) -> None:
     trace = _trace()
     goal = (float(trace.truth[-1, 1]), float(trace.truth[-1, 2]))

@@ -26,6 +26,8 @@ from mjnav.viz.view import ROOT
 from tests.conftest import REPO, free_port
 from tests.viz.helpers import ViewerClient, goal_status, ring_scan, rooms_grid, snapshot_commands, straight_path
 
+pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's markers
+
 STACK = REPO / "tests" / "viz" / "stack.toml"
 Peer = Callable[..., Bus]
 ROBOT_POSE = Pose2D(-2.0, -3.0, 0.5)
