@@ -180,6 +180,35 @@ class _Round(enum.Enum):
     HELD = 2  # stepped to t + tick, its clock held until every participant finished step t
 
 
+class ClockOut:
+    """A sim's ``clock`` publication, which a pipelined lockstep round holds back until every participant has
+    reported (see :meth:`SimService._step_lockstep`)."""
+
+    def __init__(self, bus: Bus) -> None:
+        self._bus = bus
+        self._pub = bus.publisher("clock")
+        #: Keep a clock that falls due for :meth:`release` instead of publishing it.
+        self.hold = False
+        self._held: float | None = None
+
+    def due(self, t: float) -> None:
+        """Clock ``t`` falls due: publish it, or keep it while :attr:`hold`."""
+        if self.hold:
+            self._held = t
+        else:
+            self.publish(t)
+
+    def release(self) -> None:
+        """Publish the clock kept back, if any."""
+        t, self._held = self._held, None
+        if t is not None:
+            self.publish(t)
+
+    def publish(self, t: float) -> None:
+        self._pub.put(ros.clock(t))
+        self._bus.sim_time = t  # what follows belongs to a later step (mjnav.runtime.simtime.SimTimeGate)
+
+
 class SimStepping(Protocol):
     """What :class:`SimService`'s stepping loop drives: the extension point for another simulator on the same loop
     (lockstep barrier, pacing, free-running), such as :class:`~mjnav.services.uav_sim.UavBridge`."""
@@ -234,8 +263,7 @@ class SimBridge:
         #: True while teleop overrides navigation.
         self.teleop_active = False
         self._pub = {
-            name: bus.publisher(name)
-            for name in ("clock", "scan", "odom", "imu", "joint_states", "tf", "truth", "sim_status")
+            name: bus.publisher(name) for name in ("scan", "odom", "imu", "joint_states", "tf", "truth", "sim_status")
         }
         self._ground_truth = bus.publisher("ground_truth") if config.publish_ground_truth else None
         self._spawn = bus.publisher("initialpose") if config.announce_spawn else None
@@ -254,8 +282,7 @@ class SimBridge:
         self._scan_time_s = 1.0 / lidar.rate_hz if lidar is not None else math.inf
         self.commands_applied = 0
         self.command_topics: tuple[str, ...] = ("cmd_vel",)
-        self._hold_clock = False
-        self._held_clock: float | None = None
+        self._clock_out = ClockOut(bus)
 
     @property
     def tick_s(self) -> float:
@@ -307,21 +334,15 @@ class SimBridge:
     def advance(self, target_s: float, deadline: float | None = None, *, hold_clock: bool = False) -> None:
         """Step the attached runner to ``target_s`` (see :meth:`mjnav.sim.SimRunner.advance`); ``hold_clock``:
         keep a clock due there for :meth:`release_clock`."""
-        self._hold_clock = hold_clock
+        self._clock_out.hold = hold_clock
         try:
             self._runner.advance(target_s, deadline)
         finally:
-            self._hold_clock = False
+            self._clock_out.hold = False
 
     def release_clock(self) -> None:
         """Publish the clock the last :meth:`advance` held."""
-        t, self._held_clock = self._held_clock, None
-        if t is not None:
-            self._publish_clock(t)
-
-    def _publish_clock(self, t: float) -> None:
-        self._pub["clock"].put(ros.clock(t))
-        self._bus.sim_time = t
+        self._clock_out.release()
 
     @property
     def clock_period_s(self) -> float:
@@ -418,10 +439,7 @@ class SimBridge:
         # The clock goes last: a service that sees clock t has received every message stamped up to t. What the
         # sim publishes after it is marked as sent at t (Bus.sim_time): it belongs to a later step.
         if clock_due:
-            if self._hold_clock:
-                self._held_clock = t
-            else:
-                self._publish_clock(t)
+            self._clock_out.due(t)
 
 
 def publish_robot_facts(bus: Bus, description: RobotDescription) -> tuple[Publisher, Publisher]:

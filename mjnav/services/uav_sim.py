@@ -25,7 +25,7 @@ from typing import Any
 from mjnav.msgs import msg_class, ros
 from mjnav.msgs import uav as uav_msgs
 from mjnav.runtime.simtime import LockstepBarrier, Schedule
-from mjnav.services.sim import SIM_STATUS_RATE_HZ, SimService
+from mjnav.services.sim import SIM_STATUS_RATE_HZ, ClockOut, SimService
 
 
 @dataclass(frozen=True)
@@ -122,7 +122,7 @@ class UavBridge:
         self._bus = bus
         self._cmd = bus.subscribe("rotor_cmd")
         self._pub = {
-            name: bus.publisher(name) for name in ("clock", "imu", "gps", "baro", "mocap", "ground_truth", "sim_status")
+            name: bus.publisher(name) for name in ("imu", "gps", "baro", "mocap", "ground_truth", "sim_status")
         }
         self._clock = Schedule.every(config.clock_rate_hz)
         self._gps = Schedule.every(config.gps_rate_hz)
@@ -142,8 +142,7 @@ class UavBridge:
             )
         self._ticks = 0
         self.command_topics: tuple[str, ...] = ("rotor_cmd",)
-        self._hold_clock = False
-        self._held_clock: float | None = None
+        self._clock_out = ClockOut(bus)
         self._last_cmd_t = -math.inf
         self.watchdog_tripped = False
         self.wall0 = time.monotonic()
@@ -167,13 +166,7 @@ class UavBridge:
 
     def release_clock(self) -> None:
         """Publish the clock the last :meth:`advance` held."""
-        t, self._held_clock = self._held_clock, None
-        if t is not None:
-            self._publish_clock(t)
-
-    def _publish_clock(self, t: float) -> None:
-        self._pub["clock"].put(ros.clock(t))
-        self._bus.sim_time = t  # what follows belongs to a later step (mjnav.runtime.simtime.SimTimeGate)
+        self._clock_out.release()
 
     def advance(self, target_s: float, deadline: float | None = None, *, hold_clock: bool = False) -> None:
         """Step to sim time ``target_s`` (whole IMU ticks), publishing what falls due; stop early at the
@@ -183,7 +176,7 @@ class UavBridge:
         one burst per lockstep round costs Zenoh a fraction of the wake-ups of messages spread over the physics
         steps, and subscribers see nothing of a period before its clock anyway.
         """
-        self._hold_clock = hold_clock
+        self._clock_out.hold = hold_clock
         try:
             if not self._started:
                 self._started = True
@@ -197,7 +190,7 @@ class UavBridge:
                 self._ticks += 1
                 self._publish_due(self._ticks * self.tick_s)
         finally:
-            self._hold_clock = False
+            self._clock_out.hold = False
             self._flush()
 
     def _put(self, name: str, msg: Any) -> None:
@@ -277,10 +270,7 @@ class UavBridge:
         # The clock goes last: a service that sees clock t has received every message stamped up to t.
         if self._clock.due(t):
             self._flush()
-            if self._hold_clock:
-                self._held_clock = t
-            else:
-                self._publish_clock(t)
+            self._clock_out.due(t)
 
 
 class UavSimService(SimService):
