@@ -25,6 +25,7 @@ from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import msg_class
 from mjnav.msgs.ros import seconds as ros_seconds
 from mjnav.runtime.mission import GoalOutcome, MissionClient
+from mjnav.runtime.stack import load_stack
 from tests.conftest import REPO, free_port
 from tests.services.test_navigation import SERVICES, up_process
 
@@ -70,6 +71,12 @@ def _wait_driving(client: MissionClient, metres: float) -> None:
     assert wait_until(lambda: client.driven_m() >= metres, 120.0), "the robot never drove"
 
 
+def _process_of(service: str) -> str:
+    """The name the launcher gives the process that hosts ``service`` (its container's, or its own)."""
+    stack = load_stack()
+    return next(p.name for p in stack.processes(stack.select(None)) if service in p.service_names())
+
+
 def _known_cells(msg: Any) -> int:
     return int(np.count_nonzero(np.asarray(msg.data) >= 0))
 
@@ -94,7 +101,7 @@ def test_kill_9_mid_mission_the_service_comes_back_and_the_goal_is_reached(servi
         assert result.goal_id == 1  # the same goal all along: a restarted planner resumed it, not a new one
         assert client.collisions() == 0
     text = "".join(lines)
-    assert f"{service} exited with code -9" in text and "Traceback" not in text
+    assert f"{_process_of(service)} exited with code -9" in text and "Traceback" not in text
     if service == "planner":
         assert "resuming goal 1" in text
     if service == "slam":
@@ -125,7 +132,7 @@ def test_a_hung_service_is_killed_restarted_and_the_mission_completes(service: s
         assert outcome and outcome[0].result == "reached", outcome
         assert client.collisions() == 0
     text = "".join(lines)
-    assert f"{service} (pid {first.pid}) is hung" in text and "restarting" in text
+    assert f"{_process_of(service)} (pid {first.pid}) is hung" in text and "restarting" in text
 
 
 @pytest.mark.parametrize("fault", [signal.SIGKILL, signal.SIGSTOP])
