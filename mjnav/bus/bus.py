@@ -160,8 +160,9 @@ class Publisher:
     transient-local durability): a subscriber that joins later receives the newest message from it at once. Its
     samples carry a sequence number (sample-miss detection), which is what the cache needs when the session does
     not timestamp its samples. Never publish on a latched key from a callback of a subscription to that same key on
-    the same bus: Zenoh delivers the sample to that subscription while its callback holds the subscription's lock,
-    and the put never returns (publish from a step, or from another bus).
+    the same session (this bus or one :meth:`Bus.sharing` it): Zenoh delivers the sample to that subscription while
+    its callback holds the subscription's lock, and the put never returns (publish from a step, or from another
+    session).
     """
 
     def __init__(self, bus: Bus, row: Topic, key: str) -> None:
@@ -784,7 +785,7 @@ class Bus:
 
         Raises:
             NoReply: nobody answered within ``timeout_s``.
-            RemoteError: the server answered with an error.
+            RemoteError: the server answered with an error, or with a response that does not decode.
         """
         ep = endpoint(name)
         key = ep.key(self.namespace, service)
@@ -880,9 +881,12 @@ class Bus:
 
 
 def _reply_value(reply: zenoh.Reply, response_type: str) -> Any:
-    """The decoded response of a reply, or :class:`RemoteError` for an error reply."""
+    """The decoded response of a reply, or :class:`RemoteError` for an error reply or one that does not decode."""
     if reply.ok is not None:
-        return codec.decode(reply.ok.payload.to_bytes(), response_type)
+        try:
+            return codec.decode(reply.ok.payload.to_bytes(), response_type)
+        except codec.MessageError as exc:
+            raise RemoteError(f"undecodable reply on {reply.ok.key_expr}: {exc}") from exc
     err = reply.err
     raise RemoteError(err.payload.to_string() if err is not None else "error reply without payload")
 

@@ -13,6 +13,7 @@ import zenoh
 from mjnav.bus import Bus, NoReply, RemoteError, cdr_encoding, wait_until
 from mjnav.geometry import Pose2D
 from mjnav.msgs import encode, from_dict, msg_class, ros
+from mjnav.msgs.topics import endpoint
 
 Peer = Callable[..., Bus]
 
@@ -105,6 +106,27 @@ def test_request_reply(peer: Peer) -> None:
         client.call("config", string(data="boom"), service="echo")
     with pytest.raises(NoReply):
         client.call("config", string(data="x"), service="nobody", timeout_s=0.5)
+
+
+def test_a_reply_that_does_not_decode_is_a_remote_error_sync_and_async(peer: Peer) -> None:
+    server, client = peer(), peer()
+    key = endpoint("config").key(server.namespace, "liar")
+    liar = server.session.declare_queryable(key, lambda query: query.reply(key, b"\x07garbage"))
+    server.declare_alive("liar")  # declared after the queryable: once the client sees it, it can reach the queryable
+    assert wait_until(lambda: client.alive_services() == ["liar"], 5.0)
+    with pytest.raises(RemoteError, match="undecodable reply"):
+        client.call("config", service="liar")
+    errors: list[Exception] = []
+    done = threading.Event()
+
+    def on_error(exc: Exception) -> None:
+        errors.append(exc)
+        done.set()
+
+    client.call_async("config", None, lambda _reply: done.set(), on_error, service="liar")
+    assert done.wait(5.0)
+    assert len(errors) == 1 and isinstance(errors[0], RemoteError) and "undecodable" in str(errors[0])
+    liar.undeclare()
 
 
 def test_liveliness_appears_and_disappears(peer: Peer, router_endpoint: str) -> None:
