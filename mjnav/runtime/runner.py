@@ -115,8 +115,6 @@ class ServiceRunner:
         config: its validated config (must have ``rate_hz``); None with units.
         bus_config: how to join Zenoh.
         namespace: robot namespace.
-        name: service name (default ``service_cls.name``; one service).
-        use_sim_time: override ``uses_sim_time`` (one service).
 
     Raises:
         ValueError: no service, two with one name, or a container mixing sim time and wall time.
@@ -128,13 +126,10 @@ class ServiceRunner:
         config: Any = None,
         bus_config: BusConfig | None = None,
         namespace: str = "robot0",
-        *,
-        name: str | None = None,
-        use_sim_time: bool | None = None,
     ) -> None:
         if isinstance(service_cls, type):
-            units: list[Unit] = [Unit(service_cls, config, name or service_cls.name)]
-            sim_time = service_cls.uses_sim_time if use_sim_time is None else use_sim_time
+            units: list[Unit] = [Unit(service_cls, config, service_cls.name)]
+            sim_time = service_cls.uses_sim_time
         else:
             units = list(service_cls)
             if not units:
@@ -144,6 +139,9 @@ class ServiceRunner:
                 clocks = ", ".join(f"{u.name} ({'sim' if u.service_cls.uses_sim_time else 'wall'})" for u in units)
                 raise ValueError(f"the services of one process step on one clock, sim or wall time: {clocks}")
             sim_time = kinds.pop()
+            alone = [u.name for u in units if u.service_cls.runs_alone]
+            if alone and len(units) > 1:
+                raise ValueError(f"{', '.join(alone)} must run in a process of its own (Service.runs_alone)")
         names = [u.name for u in units]
         if len(set(names)) != len(names):
             raise ValueError(f"two services of one process share a name: {names}")
@@ -168,11 +166,6 @@ class ServiceRunner:
     def stats(self) -> LoopStats:
         """The first (for one service: the) service's loop statistics."""
         return self.hosted[0].stats if self.hosted else LoopStats()
-
-    @property
-    def waiting_for(self) -> str:
-        """What the first (for one service: the) service lacks, as its status says."""
-        return self.hosted[0].waiting_for if self.hosted else ""
 
     # ---------------------------------------------------------------------------------------------- signals
 

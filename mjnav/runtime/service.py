@@ -32,6 +32,8 @@ class Service(Generic[ConfigT]):
         name: the service name (key of its status topic and liveliness token).
         config_class: the frozen dataclass its TOML config is validated into; must have ``rate_hz``.
         uses_sim_time: step on the ``clock`` topic (True) or on wall time (False, e.g. the simulator itself).
+        runs_alone: never shares a process (a relay that ignores what its own Zenoh session publishes would miss
+            what its siblings publish).
         state_dir: a directory that outlives the process for the whole run (``$MJNAV_STATE_DIR``; ``mjnav up``
             makes one per run and removes it at the end): checkpoints a restarted service resumes from (the
             mapper's map, the planner's goal). None when the service runs on its own.
@@ -43,6 +45,7 @@ class Service(Generic[ConfigT]):
     name: ClassVar[str] = ""
     config_class: ClassVar[type[Any]]
     uses_sim_time: ClassVar[bool] = True
+    runs_alone: ClassVar[bool] = False
     runtime_settable: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, config: ConfigT, bus: Bus, log: logging.Logger) -> None:
@@ -66,8 +69,8 @@ class Service(Generic[ConfigT]):
     def starting(self) -> str:
         """Before the first step: what the service still waits for, by name and key ("" = ready), e.g. the robot
         description the sim latches. The runner steps the service (and, on sim time, joins lockstep) only once this
-        is empty, so every step of every run sees the same facts; meanwhile it says what is missing in the status
-        and the log."""
+        is empty — in a container, once it is empty for every service of the process —, so every step of every run
+        sees the same facts; meanwhile it says what is missing in the status and the log."""
         return ""
 
     def starved(self) -> str:

@@ -12,7 +12,7 @@
 
     [[container]]                                 # optional: services that share one process
     name = "nav"                                  # the process's name (``mjnav run nav``)
-    services = ["slam", "mapper", "planner"]      # stepped in stack order, on one clock (sim or wall time)
+    services = ["slam", "mapper", "planner"]      # stepped in this order, on one clock (sim or wall time)
     restarts = 3                                  # the container restarts as a unit
 
 How services are packed into processes is a deployment choice (ROS 2's composition): the services of a container
@@ -102,7 +102,7 @@ class ProcessSpec:
 
     Attributes:
         name: the container's name, or the service's when it runs alone.
-        services: what it hosts, in stack order.
+        services: what it hosts, in the order they step (a container's own list).
         restarts: restarts the launcher allows after crashes (the process restarts as a unit).
     """
 
@@ -120,12 +120,17 @@ class ProcessSpec:
         return [s.name for s in self.services]
 
     def check_clocks(self) -> None:
-        """The services of one process step on one clock.
+        """The services of one process step on one clock, and none of them must run alone.
 
         Raises:
-            ConfigError: a container mixing sim-time and wall-time services.
+            ConfigError: a container mixing sim-time and wall-time services, or hosting one that runs alone
+                (:attr:`~mjnav.runtime.service.Service.runs_alone`).
         """
-        kinds = {spec.name: spec.load_class().uses_sim_time for spec in self.services}
+        classes = {spec.name: spec.load_class() for spec in self.services}
+        alone = [n for n, cls in classes.items() if cls.runs_alone]
+        if alone and self.container:
+            raise ConfigError(f"container {self.name}: {', '.join(alone)} must run in a process of its own")
+        kinds = {n: cls.uses_sim_time for n, cls in classes.items()}
         if len(set(kinds.values())) > 1:
             clocks = ", ".join(f"{n} ({'sim' if sim else 'wall'} time)" for n, sim in kinds.items())
             raise ConfigError(f"container {self.name}: its services must step on one clock, sim or wall time: {clocks}")

@@ -109,6 +109,7 @@ class RosBridgeService(Service[RosBridgeConfig]):
     name = "ros_bridge"
     config_class = RosBridgeConfig
     uses_sim_time = False
+    runs_alone = True  # it ignores what its own session publishes (no echo of its own relaying)
 
     def configure(self) -> None:
         cfg = self.config

@@ -9,6 +9,7 @@ from typing import Literal
 import pytest
 
 from mjnav.runtime import ConfigError, build_config, load_stack, parse_override
+from tests.conftest import REPO
 
 
 @dataclass(frozen=True)
@@ -91,3 +92,70 @@ def test_the_shipped_stack_loads_and_every_config_validates() -> None:
     for spec in stack.services:
         cfg = spec.load_config()
         assert cfg.rate_hz > 0
+
+
+def _processes(only: list[str] | None = None, packed: bool = True) -> dict[str, list[str]]:
+    stack = load_stack()
+    return {p.name: p.service_names() for p in stack.processes(stack.select(only), packed=packed)}
+
+
+def test_the_stack_files_containers_pack_the_services_into_processes() -> None:
+    # In start order (a container where its first member starts), each container stepping in its own order.
+    assert _processes() == {
+        "sim": ["sim"],
+        "nav": ["controller", "slam", "mapper", "planner", "smoother"],
+        "viz": ["viz"],
+    }
+    assert list(_processes(packed=False).values()) == [[n] for n in load_stack().names()]
+    assert _processes(only=["planner", "slam", "sim"]) == {"sim": ["sim"], "nav": ["slam", "planner"]}
+    assert _processes(only=["mapper"]) == {"mapper": ["mapper"]}  # a container's only selected member runs alone
+    nav = load_stack().container("nav")
+    assert nav is not None and nav.container and nav.restarts == 3 and load_stack().container("sim") is None
+    uav = load_stack(REPO / "services" / "uav_stack.toml")
+    assert [p.service_names() for p in uav.processes(uav.select(None))] == [
+        ["uav_sim"],
+        ["flight_controller", "ins"],
+        ["uav_viz"],
+    ]
+
+
+SERVICES_TOML = (
+    '[[service]]\nname = "sim"\nclass = "mjnav.services.sim:SimService"\n'
+    '[[service]]\nname = "slam"\nclass = "mjnav.services.slam:SlamService"\n'
+    '[[service]]\nname = "viz"\nclass = "mjnav.services.viz:VizService"\n'
+    '[[service]]\nname = "ros_bridge"\nclass = "mjnav.services.ros_bridge:RosBridgeService"\n'
+)
+
+
+@pytest.mark.parametrize(
+    ("container", "match"),
+    [
+        ('name = "c"\nservices = ["slam"]\nshelf = 1', r"unknown key\(s\) \['shelf'\]"),
+        ('name = "slam"\nservices = ["sim"]', "taken by a service"),
+        ('name = "c"\nservices = []', "non-empty list"),
+        ('name = "c"\nservices = ["mapper"]', "no service 'mapper' in the stack"),
+        ('name = "c"\nservices = ["slam"]\n[[container]]\nname = "d"\nservices = ["slam"]', "already in container c"),
+        ('name = "c"\nservices = ["slam"]\nrestarts = -1', "non-negative"),
+    ],
+)
+def test_a_bad_container_is_refused_with_its_place(tmp_path: Path, container: str, match: str) -> None:
+    (tmp_path / "stack.toml").write_text(f"{SERVICES_TOML}[[container]]\n{container}\n")
+    with pytest.raises(ConfigError, match=match):
+        load_stack(tmp_path / "stack.toml")
+
+
+@pytest.mark.parametrize(
+    ("members", "match"),
+    [
+        ('["sim", "slam"]', r"one clock, sim or wall time: sim \(wall time\), slam \(sim time\)"),
+        ('["viz", "ros_bridge"]', "ros_bridge must run in a process of its own"),
+    ],
+)
+def test_a_container_steps_on_one_clock_and_never_hosts_a_lone_service(
+    tmp_path: Path, members: str, match: str
+) -> None:
+    (tmp_path / "stack.toml").write_text(f'{SERVICES_TOML}[[container]]\nname = "c"\nservices = {members}\n')
+    stack = load_stack(tmp_path / "stack.toml")
+    with pytest.raises(ConfigError, match=match):
+        stack.processes(stack.select(None))
+    assert len(stack.processes(stack.select(None), packed=False)) == 4  # one per process stays possible
