@@ -557,6 +557,9 @@ class SimService(Service[SimConfig]):
         self._clock_s = 0.0  # the newest clock published
         self._round = _Round.IDLE
         self._actuators = frozenset(n for topic in self.bridge.command_topics for n in PUBLISH_RIGHTS[topic])
+        # A video's frames draw the navigation's newest messages: recording, the physics waits for everybody, so
+        # each frame shows the same plan and map on any machine.
+        self._pipelined = self.recorder is None
 
     def step(self, now: float) -> None:
         if self.barrier is not None:
@@ -616,11 +619,12 @@ class SimService(Service[SimConfig]):
                 if t + tick > self._pacer.allowed(t):
                     return
                 free = bridge.free_until_s(t)
-                if free > t:
+                if free > t and self._pipelined:
                     bridge.advance(free)  # no command is taken on the way: nobody to wait for
                 self._round = _Round.ACTUATING
             if self._round is _Round.ACTUATING:
-                if not barrier.wait(t, max(0.0, deadline - time.monotonic()), among=self._actuators):
+                among = self._actuators if self._pipelined else None
+                if not barrier.wait(t, max(0.0, deadline - time.monotonic()), among=among):
                     return
                 bridge.advance(t + tick, hold_clock=True)
                 self._round = _Round.HELD
