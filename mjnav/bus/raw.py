@@ -2,9 +2,10 @@
 
 The ROS 2 bridge (rmw_zenoh's keys), the Foxglove relay and the bag recorder and player move payloads between keys
 or to files as they are. They go through the same transport as every typed topic — the bus's session, its QoS
-(:func:`~mjnav.bus.bus.publisher_qos`), its network-thread handling, its clean-up — via :meth:`mjnav.bus.Bus.
-subscribe_raw`, :meth:`~mjnav.bus.Bus.publisher_raw` and :meth:`~mjnav.bus.Bus.declare_token`; nothing outside
-``mjnav.bus`` opens or drives a Zenoh session itself.
+(:func:`~mjnav.bus.bus.publisher_qos`), its clean-up — via :meth:`mjnav.bus.Bus.subscribe_raw` (callbacks on
+Zenoh's callback thread, not the network thread: a relay's file or socket I/O never holds the network up),
+:meth:`~mjnav.bus.Bus.publisher_raw` and :meth:`~mjnav.bus.Bus.declare_token`; nothing outside ``mjnav.bus``
+opens or drives a Zenoh session itself.
 """
 
 from __future__ import annotations

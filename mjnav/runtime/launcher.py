@@ -16,7 +16,7 @@ Start-up: with ``fork_services`` (``mjnav up``, ``mjnav demo``, ``mjnav fly``) t
 service needs once (:data:`PRELOAD_MODULES`, the service classes, numba's compiler target) and forks each service's
 first process from itself, before it opens any Zenoh session or starts a thread; the children then skip the
 interpreter start, the imports and numba's set-up (most of a service's start-up). A restart always executes a fresh
-``python -m mjnav run <name>``: once the router runs, the launcher holds Zenoh's threads, which a fork must not copy.
+``python -m mjnav run <names>``: once the router runs, the launcher holds Zenoh's threads, which a fork must not copy.
 """
 
 from __future__ import annotations
@@ -341,8 +341,8 @@ class Launcher:
             str(self.stack.path),
             "--ns",
             self.namespace,
-            # Client mode: every message goes through the router, one link per service, so each service receives
-            # a publisher's messages in the order they were sent (what lockstep relies on).
+            # Client mode: every message between processes goes through the router, one link per process, so each
+            # process receives a publisher's messages in the order they were sent (what lockstep relies on).
             "--mode",
             "client",
             "--connect",

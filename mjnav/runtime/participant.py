@@ -21,7 +21,8 @@ class LockstepParticipant:
     """Base of the clients that take part in lockstep; subclasses implement :meth:`_step`."""
 
     def _init_participant(self, bus: Bus, name: str, period_s: float) -> None:
-        """Set up the state (call first in ``__init__``; the bus becomes staged)."""
+        """Set up the state (call first in ``__init__``; the bus's samples go through a :class:`SimTimeGate` from
+        here on)."""
         self.bus = bus
         self.name = name
         self.period_s = period_s
@@ -30,11 +31,6 @@ class LockstepParticipant:
         self._schedule: Schedule | None = None  # None: not taking part; its next due time is the next step's
         self._reporter: LockstepReporter | None = None
         self._gate = SimTimeGate(bus)
-
-    @property
-    def rejected_clocks(self) -> int:
-        """Clock messages dropped as too far ahead (forged)."""
-        return self._clock.rejected_jumps
 
     def _subscribe_clock(self) -> Any:
         """Subscribe to the clock (call last in ``__init__``, after the other subscriptions)."""

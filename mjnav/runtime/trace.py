@@ -66,7 +66,8 @@ class _Buffers:
 
 class TraceRecorder:
     """Records a :class:`RunTrace` from ``truth``, ``pose``, ``cmd_vel``, ``odom``, ``plan``, ``path`` and ``map``
-    on ``bus`` (callbacks; on a staged bus they run when the clock commits them, in arrival order)."""
+    on ``bus`` (callbacks; behind a :class:`~mjnav.runtime.simtime.SimTimeGate` they run when the clock commits
+    them, in arrival order)."""
 
     def __init__(self, bus: Bus) -> None:
         self._lock = threading.Lock()

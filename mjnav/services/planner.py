@@ -10,8 +10,8 @@ Goals come two ways: on the ``goal`` topic (fire and forget, like RViz's 2D Goal
 ``navigate`` endpoint (like Nav2's NavigateToPose action), which is answered at once — accepted with the goal id its
 ``goal_status`` messages will carry, or rejected with a typed code (frame not ``map``, outside the costmap, in an
 obstacle). Goals, cancels and navigate requests take effect at the planner's next step in the order they arrived
-(requests go through the bus's staging like messages, :meth:`mjnav.bus.Bus.defer`); a newer goal supersedes the
-active one.
+(requests are staged by sim time like messages: :meth:`mjnav.bus.Bus.defer`,
+:class:`mjnav.runtime.simtime.SimTimeGate`); a newer goal supersedes the active one.
 
 The planner owns every goal: it alone publishes ``goal_status``. The controller reports on ``controller_feedback``;
 its arrival ends the goal as reached (stamped when the robot arrived), its "no progress" as failed with

@@ -5,7 +5,7 @@ Publishes, stamped in sim time: ``clock``, ``imu`` (body FLU specific force and 
 ``gps_delay_s`` later; the origin itself is latched on ``datum``), ``baro`` (static pressure), ``mocap`` (true pose
 and twist in ENU: the motion-capture system; the twist's linear part is expressed in ``map``), ``ground_truth``
 (true pose, for evaluation) and ``sim_status`` (collisions with obstacles, real-time factor, motor watchdog). It
-drives the rotors with the newest ``rotor_cmd`` (speeds, rad/s), read at every clock tick; an ESC-style watchdog
+drives the rotors with the newest ``rotor_cmd`` (speeds, rad/s), read at every IMU tick; an ESC-style watchdog
 stops them when that command is older than ``motor_timeout_s`` of sim time.
 
 Time and lockstep are the ground sim's (:class:`~mjnav.services.sim.SimService`, whose stepping loop this service

@@ -15,7 +15,7 @@ class Pacer:
         rtf: sim seconds per wall second; ``None`` or 0: as fast as possible (no bound).
         catch_up: after falling behind (a stall, a slow step), make the lost time up by running faster until back on
             the line (free-running: sim time follows wall time, like hardware); False: start the line again from
-            where the sim is when it has fallen more than ``slack_s`` of sim time behind — never sprint after a
+            where the sim is when it has fallen more than ``slack_s`` of wall time behind — never sprint after a
             stall (lockstep, paced runs).
         slack_s: how far behind the line (wall seconds) counts as fallen behind, without ``catch_up``.
         lead_s: how far ahead of the sim (sim seconds) the line starts when it (re)starts: a lockstep sim that
