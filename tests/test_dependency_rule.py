@@ -73,7 +73,8 @@ ALLOWED: dict[str, set[str]] = {
 #: Single modules allowed one more import, each for a reason: file formats live at their package's edge, and a numba
 #: intrinsic is written in numba's own IR layer.
 ALLOWED_IN_MODULE: dict[str, set[str]] = {
-    "mjnav.mapping.ros_map": {"yaml"},  # the ROS map file (YAML + PGM) reader, the mapping package's edge
+    # the ROS map file reader (YAML + an image: PNG, BMP, JPEG, ... through Pillow), the mapping package's edge
+    "mjnav.mapping.ros_map": {"yaml", "PIL"},
     "mjnav.planning._kernels": {"llvmlite"},  # an @intrinsic (unsigned heap index) builds LLVM IR
 }
 #: Layers above the algorithms that must not reach up: the runtime runs services, it never imports the command

@@ -37,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
     fm = sub.add_parser(
         "from-map",
-        help="build a world from a ROS map (.yaml + .pgm) or a Moving AI map (.map)",
+        help="build a world from a ROS map (.yaml + PGM, PNG, BMP, JPEG, TIFF, ... image) or a Moving AI map (.map)",
         description=(
             "Read an occupancy grid, merge its occupied cells into few boxes (greedy rectangles), add a "
             "floor and the robot, and write one self-contained MJCF scene. ROS maps keep their resolution "

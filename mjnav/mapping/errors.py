@@ -40,4 +40,4 @@ class OutsideMapError(MappingError):
 
 
 class MapFileError(MappingError):
-    """A map file (YAML or PGM/PPM image) cannot be parsed or is inconsistent."""
+    """A map file (YAML or its image) cannot be parsed or is inconsistent."""

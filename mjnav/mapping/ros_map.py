@@ -1,12 +1,15 @@
-"""ROS map_server map files: a YAML description plus a PGM (or PPM) image.
+"""ROS map_server map files: a YAML description plus an image.
 
-Reading follows the documented map_server / Nav2 ``map_io`` conversion. For each pixel with value v and
-maximum value M, shade = v / M (colour images: mean of the channels, as ROS 1 map_server) and occ = 1 − shade
+The image may be in any format map_server and Nav2 read: PGM/PPM (P2, P3, P5, P6; read here, 8 and 16 bit) and,
+through Pillow, PNG, BMP, JPEG, TIFF, GIF, WebP and the rest Pillow opens (first frame; 8 or 16 bit; palette
+images by their colours). Reading follows Nav2's ``map_io`` conversion. For each pixel with channel values v and
+maximum value M, shade = mean(v_R, v_G, v_B) / M (a grey pixel counts as R = G = B) and occ = 1 − shade
 (``negate: 1``: occ = shade);
 
-* trinary (default): 100 if occ > occupied_thresh, 0 if occ < free_thresh, else −1;
-* scale: as trinary at the extremes, otherwise rint(100·(occ − free_thresh) / (occupied_thresh −
-  free_thresh));
+* trinary (default): 100 if occ > occupied_thresh, 0 if occ < free_thresh, else −1; an image with an alpha channel
+  averages its alpha (opaque = M) in with R, G and B, as map_io does;
+* scale: −1 where the pixel is not fully opaque, else as trinary at the extremes and otherwise
+  rint(100·(occ − free_thresh) / (occupied_thresh − free_thresh));
 * raw: round(255·shade) if in 0..100, else −1.
 
 The image's top row is the map's highest-y row, so it is flipped: :attr:`RosMap.occupancy` has row 0 = lowest
@@ -18,7 +21,9 @@ Writing produces a trinary map the way map_saver does: 0 (black) for values >= r
 
 from __future__ import annotations
 
+import io
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -126,14 +131,96 @@ class RosMap:
 # ---------------------------------------------------------------------------------------------------------
 
 
-def _read_pnm(path: Path) -> NDArray[np.float64]:
-    """Shade in [0, 1] of a P2/P3/P5/P6 image, (rows, cols), image row 0 at the top; colour averaged."""
+#: Netpbm formats read here (the others go through Pillow).
+_PNM_MAGIC = (b"P2", b"P3", b"P5", b"P6")
+
+
+@dataclass(frozen=True)
+class _Pixels:
+    """An image's pixels for map_io's conversion, as the file's integers: colour (rows, cols, 3; grey repeated),
+    alpha (rows, cols; ``maxval`` = opaque) or None; image row 0 at the top."""
+
+    rgb: NDArray[np.float64]
+    alpha: NDArray[np.float64] | None
+    maxval: float
+
+    def shade(self, with_alpha: bool) -> NDArray[np.float64]:
+        """map_io's brightness in [0, 1]: the mean of R, G, B (and alpha) over the maximum. Summed as integers
+        first, so a grey pixel's shade is exactly v / maxval."""
+        total = self.rgb.sum(axis=2)
+        if with_alpha and self.alpha is not None:
+            return (total + self.alpha) / 4.0 / self.maxval
+        return total / 3.0 / self.maxval
+
+    def opaque(self) -> NDArray[np.bool_] | None:
+        """Where the pixel is fully opaque (None without alpha)."""
+        return None if self.alpha is None else self.alpha >= self.maxval
+
+
+def _read_image(path: Path) -> _Pixels:
+    """The pixels of a map image, Netpbm here, any other format through Pillow.
+
+    Raises:
+        MapFileError: not an image, an unsupported mode, a corrupt or truncated file.
+        OSError: the file cannot be read.
+    """
     data = path.read_bytes()
-    magic = data[:2]
-    if magic not in (b"P2", b"P3", b"P5", b"P6"):
+    if data[:2] in _PNM_MAGIC:
+        return _read_pnm(path, data)
+    return _read_pillow(path, data)
+
+
+def _read_pillow(path: Path, data: bytes) -> _Pixels:
+    from PIL import Image, UnidentifiedImageError
+
+    limit = Image.MAX_IMAGE_PIXELS
+    try:
+        # A map is a big image by design (a building at 5 cm is tens of millions of pixels): no decompression-bomb
+        # limit for a file the user named as their map.
+        Image.MAX_IMAGE_PIXELS = None
+        with warnings.catch_warnings(), Image.open(io.BytesIO(data)) as img:
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            img.load()
+            return _pillow_pixels(path, img)
+    except UnidentifiedImageError as exc:
         raise MapFileError(
-            f"{path}: unsupported image format (magic {magic!r}); only PGM/PPM (P2, P3, P5, P6) are supported"
-        )
+            f"{path}: not an image map_server reads (PGM, PPM, PNG, BMP, JPEG, TIFF, GIF, ...), or a corrupt one"
+        ) from exc
+    except (OSError, ValueError, SyntaxError) as exc:  # Pillow's truncated / corrupt file errors
+        raise MapFileError(f"{path}: corrupt or truncated image: {exc}") from exc
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
+
+
+def _pillow_pixels(path: Path, img: Any) -> _Pixels:
+    mode = img.mode
+    if mode in ("I;16", "I;16L", "I;16B", "I;16N", "I"):
+        values = np.asarray(img, dtype=np.float64)
+        if values.min(initial=0.0) < 0 or values.max(initial=0.0) > 65535:
+            raise MapFileError(f"{path}: {mode} pixel values outside 0..65535")
+        return _Pixels(np.repeat(values[:, :, None], 3, axis=2), None, 65535.0)
+    if mode == "F":
+        raise MapFileError(f"{path}: a floating-point image is not a map (mode F)")
+    if mode == "P":
+        img = img.convert("RGBA" if "transparency" in img.info else "RGB")
+    elif mode in ("1", "L", "LA", "RGB", "RGBA"):
+        pass
+    elif mode in ("PA", "RGBa", "La"):
+        img = img.convert("RGBA")
+    else:  # CMYK, YCbCr, LAB, HSV, RGBX: their colours
+        img = img.convert("RGB")
+    values = np.asarray(img.convert("L") if img.mode == "1" else img, dtype=np.float64)
+    if values.ndim == 2:
+        values = values[:, :, None]
+    has_alpha = img.mode in ("LA", "RGBA")
+    colour = values[:, :, :-1] if has_alpha else values
+    rgb = np.repeat(colour, 3, axis=2) if colour.shape[2] == 1 else colour
+    return _Pixels(rgb, values[:, :, -1] if has_alpha else None, 255.0)
+
+
+def _read_pnm(path: Path, data: bytes) -> _Pixels:
+    """The pixels of a P2/P3/P5/P6 image (no alpha)."""
+    magic = data[:2]
     channels = 3 if magic in (b"P3", b"P6") else 1
     # Header: magic, width, height, maxval, separated by whitespace; '#' starts a comment to end of line.
     fields: list[int] = []
@@ -178,8 +265,8 @@ def _read_pnm(path: Path) -> NDArray[np.float64]:
             raise MapFileError(f"{path}: image data truncated ({values.size} of {count} values)")
     if values.max(initial=0.0) > maxval:
         raise MapFileError(f"{path}: pixel value above maxval {maxval}")
-    img = values.reshape(height, width, channels).mean(axis=2)
-    return img / maxval
+    img = values.reshape(height, width, channels)
+    return _Pixels(np.repeat(img, 3, axis=2) if channels == 1 else img, None, float(maxval))
 
 
 def _write_pgm(path: Path, pixels: NDArray[np.uint8], comment: str) -> None:
@@ -208,7 +295,7 @@ def _yaml_float(doc: dict[str, Any], key: str, path: Path, default: float | None
 
 
 def read_ros_map(yaml_path: str | Path) -> RosMap:
-    """Read a map_server map (YAML + PGM/PPM image).
+    """Read a map_server map (YAML + image: PGM, PPM, PNG, BMP, JPEG, TIFF, GIF, ...).
 
     Args:
         yaml_path: the YAML file. Its ``image`` is resolved relative to the YAML's folder unless absolute.
@@ -258,7 +345,8 @@ def read_ros_map(yaml_path: str | Path) -> RosMap:
     image_path = Path(doc["image"])
     if not image_path.is_absolute():
         image_path = path.parent / image_path
-    shade = _read_pnm(image_path)
+    pixels = _read_image(image_path)
+    shade = pixels.shade(with_alpha=mode == "trinary")  # map_io averages the alpha in, in trinary mode only
     occ = shade if negate else 1.0 - shade
     if mode == "raw":
         # map_server: std::round(shade · 255), kept if within 0..100 (negate does not apply in raw mode).
@@ -271,6 +359,9 @@ def read_ros_map(yaml_path: str | Path) -> RosMap:
             cells[:] = np.clip(mid, 0, 100).astype(np.int8)
         cells[occ < free_t] = 0
         cells[occ > occ_t] = 100
+        opaque = pixels.opaque()
+        if mode == "scale" and opaque is not None:
+            cells[~opaque] = -1  # map_io: a pixel that is not fully opaque is unknown
     return RosMap(
         occupancy=np.ascontiguousarray(cells[::-1]),
         resolution_m=resolution,

@@ -95,6 +95,112 @@ def test_read_16_bit_and_colour_images(tmp_path: Path) -> None:
     np.testing.assert_array_equal(read_ros_map(tmp_path / "c.yaml").occupancy, [[0, 100]])
 
 
+def _map_yaml(tmp_path: Path, image: str, extra: str = "") -> Path:
+    path = tmp_path / f"{image}.yaml"
+    path.write_text(f"image: {image}\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\n{extra}")
+    return path
+
+
+#: A map image with the trinary palette and every shade in between, including the thresholds' neighbours.
+GREYS = np.array([np.arange(256, dtype=np.uint8).reshape(16, 16)[i] for i in range(16)])
+
+
+@pytest.mark.parametrize("fmt", ["png", "bmp", "tiff", "gif", "webp"])
+@pytest.mark.parametrize("mode", ["trinary", "scale", "raw"])
+def test_every_lossless_image_format_reads_exactly_as_its_pgm(tmp_path: Path, fmt: str, mode: str) -> None:
+    from PIL import Image
+
+    (tmp_path / "m.pgm").write_bytes(b"P5 16 16 255\n" + GREYS.tobytes())
+    save = {"webp": {"lossless": True}}.get(fmt, {})
+    Image.fromarray(GREYS, mode="L").save(tmp_path / f"m.{fmt}", **save)
+    expected = read_ros_map(_map_yaml(tmp_path, "m.pgm", f"mode: {mode}\n"))
+    got = read_ros_map(_map_yaml(tmp_path, f"m.{fmt}", f"mode: {mode}\n"))
+    np.testing.assert_array_equal(got.occupancy, expected.occupancy)
+    assert got.resolution_m == 0.05 and got.origin_m == (-1.0, 2.0, 0.0) and got.image_path == tmp_path / f"m.{fmt}"
+
+
+def test_colour_16_bit_palette_and_jpeg_maps(tmp_path: Path) -> None:
+    from PIL import Image
+
+    rgb = np.zeros((2, 3, 3), dtype=np.uint8)
+    rgb[0] = [[255, 255, 255], [0, 30, 0], [200, 210, 220]]
+    rgb[1] = [[10, 0, 0], [255, 250, 255], [120, 130, 140]]
+    (tmp_path / "c.ppm").write_bytes(b"P6 3 2 255\n" + rgb.tobytes())
+    Image.fromarray(rgb, mode="RGB").save(tmp_path / "c.png")
+    np.testing.assert_array_equal(
+        read_ros_map(_map_yaml(tmp_path, "c.png")).occupancy, read_ros_map(_map_yaml(tmp_path, "c.ppm")).occupancy
+    )
+    # Palette: the colours, not the indices.
+    Image.fromarray(rgb, mode="RGB").quantize(6).save(tmp_path / "p.png")
+    assert Image.open(tmp_path / "p.png").mode == "P"
+    np.testing.assert_array_equal(
+        read_ros_map(_map_yaml(tmp_path, "p.png")).occupancy, read_ros_map(_map_yaml(tmp_path, "c.ppm")).occupancy
+    )
+    # 16 bit: the full range, as the 16-bit PGM.
+    wide = np.array([[0, 30000, 65535]], dtype=np.uint16)
+    (tmp_path / "w.pgm").write_bytes(b"P5 3 1 65535\n" + wide.astype(">u2").tobytes())
+    Image.fromarray(wide).save(tmp_path / "w.png")
+    assert Image.open(tmp_path / "w.png").mode.startswith("I")
+    np.testing.assert_array_equal(read_ros_map(_map_yaml(tmp_path, "w.png")).occupancy, [[100, -1, 0]])
+    np.testing.assert_array_equal(
+        read_ros_map(_map_yaml(tmp_path, "w.png")).occupancy, read_ros_map(_map_yaml(tmp_path, "w.pgm")).occupancy
+    )
+    # JPEG is lossy: black, white and unknown grey blocks still read as occupied, free and unknown.
+    blocks = np.kron(np.array([[0, 254, 205]], dtype=np.uint8), np.ones((8, 8), dtype=np.uint8))
+    Image.fromarray(blocks, mode="L").save(tmp_path / "j.jpg", quality=95)
+    occupancy = read_ros_map(_map_yaml(tmp_path, "j.jpg")).occupancy
+    assert (occupancy[:, :8] == 100).all() and (occupancy[:, 8:16] == 0).all() and (occupancy[:, 16:] == -1).all()
+
+
+def test_alpha_is_averaged_in_trinary_mode_and_unknown_in_scale_mode(tmp_path: Path) -> None:
+    from PIL import Image
+
+    # Nav2's map_io: trinary averages alpha (opaque = max) with R, G and B; scale makes a pixel that is not fully
+    # opaque unknown; raw ignores alpha.
+    la = np.array([[[255, 0], [0, 255], [255, 255], [0, 0], [128, 255]]], dtype=np.uint8)  # (grey, alpha)
+    Image.fromarray(la, mode="LA").save(tmp_path / "a.png")
+    trinary = read_ros_map(_map_yaml(tmp_path, "a.png")).occupancy
+    # shade = (3·grey + alpha) / 4 / 255: 0.75 → occ 0.25 unknown; 0.25 → occ 0.75 occupied; 1 → free;
+    # 0 → occupied; (384 + 255) / 1020 = 0.626 → occ 0.374 unknown.
+    np.testing.assert_array_equal(trinary, [[-1, 100, 0, 100, -1]])
+    scale = read_ros_map(_map_yaml(tmp_path, "a.png", "mode: scale\n")).occupancy
+    # Opaque ones only: black 100, white 0, 128 → occ 0.498 → rint((0.498 − 0.196) / (0.65 − 0.196) · 100) = 67.
+    np.testing.assert_array_equal(scale, [[-1, 100, 0, -1, 67]])
+    raw = read_ros_map(_map_yaml(tmp_path, "a.png", "mode: raw\n")).occupancy
+    np.testing.assert_array_equal(raw, [[-1, 0, -1, 0, -1]])
+    rgba = np.concatenate([np.repeat(la[:, :, :1], 3, axis=2), la[:, :, 1:]], axis=2)
+    Image.fromarray(rgba, mode="RGBA").save(tmp_path / "b.png")
+    for mode in ("trinary", "scale", "raw"):
+        np.testing.assert_array_equal(
+            read_ros_map(_map_yaml(tmp_path, "b.png", f"mode: {mode}\n")).occupancy,
+            read_ros_map(_map_yaml(tmp_path, "a.png", f"mode: {mode}\n")).occupancy,
+        )
+
+
+@pytest.mark.parametrize(
+    ("image", "match"),
+    [
+        (b"GIF89a not really", "corrupt"),
+        (b"\x89PNG\r\n\x1a\n", "corrupt"),
+        (b"hello, world", "not an image map_server reads"),
+    ],
+)
+def test_a_bad_image_of_any_format_is_a_map_file_error(tmp_path: Path, image: bytes, match: str) -> None:
+    (tmp_path / "x.png").write_bytes(image)
+    with pytest.raises(MapFileError, match=match):
+        read_ros_map(_map_yaml(tmp_path, "x.png"))
+
+
+def test_a_truncated_png_is_a_map_file_error(tmp_path: Path) -> None:
+    from PIL import Image
+
+    Image.fromarray(np.tile(GREYS, (8, 8)), mode="L").save(tmp_path / "t.png")
+    data = (tmp_path / "t.png").read_bytes()
+    (tmp_path / "t.png").write_bytes(data[: len(data) // 2])
+    with pytest.raises(MapFileError, match="corrupt or truncated"):
+        read_ros_map(_map_yaml(tmp_path, "t.png"))
+
+
 def test_grid_round_trip_through_files(tmp_path: Path) -> None:
     g = OccupancyGrid(30, 20, 0.1, (-1.0, -0.5))
     angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
@@ -130,7 +236,6 @@ def test_ros_map_is_immutable_and_validated() -> None:
 @pytest.mark.parametrize(
     ("yaml_text", "image"),
     [
-        ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"\x89PNG\r\n\x1a\n"),
         ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P5\n4 4\n255\n\x00\x00"),  # truncated
         ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P5\n0 4\n255\n"),
         ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P2\n2 1\n10\n3 11\n"),  # above maxval

@@ -145,6 +145,26 @@ def test_cli_from_map(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert "error" in capsys.readouterr().err
 
 
+def test_cli_from_map_takes_a_png_map_as_its_pgm(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from PIL import Image
+
+    px = np.full((40, 60), 254, dtype=np.uint8)
+    px[0:5, :] = 0
+    px[15:30, 20:24] = 0
+    px[20:25, 40:50] = 205
+    yaml = _write_ros_map(tmp_path, px, [-3.0, -1.0, 0.0], 0.05)
+    (tmp_path / "png").mkdir()
+    Image.fromarray(px, mode="L").save(tmp_path / "png" / "m.png")
+    png_yaml = tmp_path / "png" / "m.yaml"
+    png_yaml.write_text(yaml.read_text().replace("image: m.pgm", "image: m.png"))
+    args = ["--start", "-2.5", "0.2", "--goal", "-0.5", "0.2"]
+    assert main(["world", "from-map", str(yaml), "--out", str(tmp_path / "pgm.xml"), *args]) == 0
+    assert main(["world", "from-map", str(png_yaml), "--out", str(tmp_path / "png.xml"), *args]) == 0
+    pgm_line, png_line = capsys.readouterr().out.splitlines()
+    assert "occupied cells -> " in png_line and png_line.replace("png.xml", "pgm.xml") == pgm_line
+    assert (tmp_path / "png.xml").read_text() == (tmp_path / "pgm.xml").read_text()
+
+
 def test_reference_movingai_map_converts(refdata: Path, tmp_path: Path) -> None:
     src = refdata / "movingai" / "arena.map"
     summary = write_scene_from_map(src, tmp_path / "arena.xml")
