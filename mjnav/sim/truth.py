@@ -25,14 +25,15 @@ _G = mujoco.mjtGeom
 def static_occupancy(model: mujoco.MjModel, data: mujoco.MjData, frame: GridFrame) -> NDArray[np.bool_]:
     """(H, W) bool grid of ``frame``: True where a cell centre lies inside a static obstacle's footprint.
 
+    Each obstacle is tested only on the cells under its bounding square, so the cost grows with the obstacles' area,
+    not with obstacles × cells (a real map's world has thousands of wall boxes on millions of cells).
+
     Args:
         model, data: the compiled world; ``data`` must hold positions (call ``mj_forward`` first).
         frame: the grid placement in the map (= MuJoCo world) frame.
     """
     h, w = frame.shape
-    centres = frame.cells_to_world(np.stack(np.meshgrid(np.arange(h), np.arange(w), indexing="ij"), -1).reshape(-1, 2))
-    xs, ys = centres[:, 0], centres[:, 1]
-    occupied = np.zeros(h * w, dtype=bool)
+    occupied = np.zeros((h, w), dtype=bool)
     for g in range(model.ngeom):
         gtype = int(model.geom_type[g])
         body = int(model.geom_bodyid[g])
@@ -45,7 +46,13 @@ def static_occupancy(model: mujoco.MjModel, data: mujoco.MjData, frame: GridFram
         cx, cy = float(data.geom_xpos[g, 0]), float(data.geom_xpos[g, 1])
         size = model.geom_size[g]
         rot = data.geom_xmat[g].reshape(3, 3)
-        dx, dy = xs - cx, ys - cy
+        window = _cells_under(frame, cx, cy, _planar_reach(gtype, size, float(model.geom_rbound[g])))
+        if window is None:
+            continue
+        rows, cols = window
+        rr, cc = np.meshgrid(np.arange(rows.start, rows.stop), np.arange(cols.start, cols.stop), indexing="ij")
+        centres = frame.cells_to_world(np.column_stack((rr.ravel(), cc.ravel())))
+        dx, dy = centres[:, 0] - cx, centres[:, 1] - cy
         if gtype == _G.mjGEOM_BOX:
             # Footprint of an oriented box: |p·axis_i| <= half-extent projected, for the box's own x and y axes
             # (exact for boxes rotated about z only, which is how walls and shelves are placed).
@@ -60,8 +67,33 @@ def static_occupancy(model: mujoco.MjModel, data: mujoco.MjData, frame: GridFram
         else:  # meshes and the rest: the square around the bounding sphere
             r = float(model.geom_rbound[g])
             inside = (np.abs(dx) <= r) & (np.abs(dy) <= r)
-        occupied |= inside
-    return occupied.reshape(h, w)
+        occupied[rows, cols] |= inside.reshape(rr.shape)
+    return occupied
+
+
+def _planar_reach(gtype: int, size: NDArray[np.float64], rbound: float) -> float:
+    """Radius about a geom's centre that holds its footprint as :func:`static_occupancy` draws it."""
+    if gtype == _G.mjGEOM_BOX:
+        return math.hypot(float(size[0]), float(size[1]))
+    if gtype in (_G.mjGEOM_CYLINDER, _G.mjGEOM_CAPSULE, _G.mjGEOM_SPHERE):
+        return float(size[0])
+    if gtype == _G.mjGEOM_ELLIPSOID:
+        return max(float(size[0]), float(size[1]))
+    return rbound * math.sqrt(2.0)  # the square around the bounding sphere
+
+
+def _cells_under(frame: GridFrame, cx: float, cy: float, reach: float) -> tuple[slice, slice] | None:
+    """Row and column ranges of ``frame`` holding every cell centre within ``reach`` of (cx, cy) (None: none)."""
+    corners = np.array([[cx - reach, cy - reach], [cx + reach, cy - reach], [cx - reach, cy + reach],
+                        [cx + reach, cy + reach]])  # fmt: skip
+    cells = frame.world_to_cells(corners)
+    r0, c0 = (int(v) - 1 for v in cells.min(axis=0))
+    r1, c1 = (int(v) + 2 for v in cells.max(axis=0))
+    h, w = frame.shape
+    r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1, h), min(c1, w)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    return slice(r0, r1), slice(c0, c1)
 
 
 class FootprintClearance:

@@ -33,6 +33,33 @@ def test_moving_obstacles_and_the_robot_are_not_in_the_static_map() -> None:
     assert movers, "the warehouse should have moving bodies"
 
 
+@pytest.mark.parametrize(
+    ("world", "origin", "yaw"),
+    [("warehouse", (-11.0, -9.0), 0.0), ("rooms", (-5.0, -9.0), 0.3), ("maze", (-12.0, 6.0), -1.1)],
+)
+def test_every_cell_is_occupied_exactly_where_an_obstacle_covers_its_centre(
+    world: str, origin: tuple[float, float], yaw: float
+) -> None:
+    """Against the exact shapes of FootprintClearance (signed distance <= 0 inside), cell by cell, also on a grid
+    rotated in the world and reaching past it (each obstacle is drawn only under its own bounding square)."""
+    from mjnav.sim.truth import FootprintClearance
+
+    sim = Simulator(world, lidar=None)
+    mujoco.mj_forward(sim.model, sim.data)
+    frame = GridFrame(0.05, origin, (400, 440), yaw_rad=yaw)
+    occ = static_occupancy(sim.model, sim.data, frame)
+    fc = FootprintClearance(world)
+    rng = np.random.default_rng(11)
+    cells = rng.integers(0, frame.shape, size=(4000, 2))
+    checked = 0
+    for (r, c), (x, y) in zip(cells, frame.cells_to_world(cells), strict=True):
+        d = fc.obstacle_distance_m(x, y)
+        if abs(d) > 1e-9:
+            assert occ[r, c] == (d < 0), (world, r, c, d)
+            checked += 1
+    assert checked > 3900 and 0.01 < occ.mean() < 0.5
+
+
 def test_shortest_length_is_at_least_the_straight_line() -> None:
     length = shortest_length_m("rooms", (-3.5, -3.5), (3.8, 2.2))
     assert 9.28 < length < 11.0  # straight line is 9.27 m; the walls force a detour through the doorways
