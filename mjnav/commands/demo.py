@@ -26,7 +26,8 @@ def register(sub: Any) -> None:
         help="run the navigation mission end to end and print its summary",
         description=(
             "Start a Zenoh router and every service of the stack (sim, mapper, planner, smoother, controller, …), "
-            "send the goal(s), and end with a summary. The robot starts with an unknown map. Exit code 0 only when "
+            "send the goal(s), and end with a summary. The robot starts with an unknown map and explores (--known-map: "
+            "it is given the map: the ROS map file itself, or the world's true static map). Exit code 0 only when "
             "every goal was reached. With --json the last stdout line is the summary as JSON: reached, collisions, "
             "time_s (sim), path_length_m (driven), optimal_length_m (shortest collision-free path for the robot's "
             "radius on the true map), v_max_mps, min_clearance_m (smallest distance between the robot's footprint, "
@@ -95,6 +96,12 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--timeout", type=float, default=240.0, metavar="S", help="sim seconds allowed per goal (default 240)"
     )
+    p.add_argument(
+        "--known-map",
+        action="store_true",
+        help="give the robot the map at the start (the mapper's prior_map): a --world MAP.yaml as it is, any other "
+        "world as its true static map at the mapper's resolution; default: the robot starts on an unknown map",
+    )
     p.add_argument("--port", type=int, default=7447, help="router port on 127.0.0.1 (default 7447)")
     p.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
     add_packing_argument(p)
@@ -140,6 +147,22 @@ MAP_SUFFIXES = (".yaml", ".yml", ".map")
 AUTO_CLEARANCE_M = 0.5
 #: Straight-line distance band (m) between the automatically chosen start and goal.
 AUTO_GOAL_DISTANCE_M = (2.0, 12.0)
+
+
+def known_map(world_arg: str, scene: Path, folder: Path, resolution_m: float) -> Path:
+    """The ROS map ``--known-map`` gives the robot: a ``--world MAP.yaml`` itself (unknown cells and all), for any
+    other world its true static map at ``resolution_m`` (occupied or free), written to ``folder/known_map.yaml``."""
+    import numpy as np
+
+    from mjnav.mapping import write_ros_map
+    from mjnav.sim.truth import true_grid
+
+    if Path(world_arg).suffix.lower() in (".yaml", ".yml"):
+        return Path(world_arg)
+    occupied, frame = true_grid(scene, resolution_m=resolution_m)
+    path = folder / "known_map.yaml"
+    write_ros_map(path, np.where(occupied, 100, 0).astype(np.int8), frame.resolution_m, frame.origin_m)
+    return path
 
 
 def world_from_map(map_path: str, scene: Path, seed: int, resolution_m: float | None) -> Path:
@@ -227,6 +250,16 @@ def run(args: argparse.Namespace) -> int:
             overrides.setdefault("mapper", []).append(f"save_path={json.dumps(str((out / 'map.yaml').resolve()))}")
         if out is not None and "viz" in stack.names():
             overrides.setdefault("viz", []).append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
+        if args.known_map:
+            if "mapper" not in stack.names():
+                raise ValueError("--known-map gives the map to the mapper, and this stack has none")
+            folder = out
+            if folder is None:
+                scratch = scratch or tempfile.TemporaryDirectory(prefix="mjnav-demo-")
+                folder = Path(scratch.name)
+            resolution = float(stack.get("mapper").load_config().resolution_m)
+            prior = known_map(args.world, info.path, folder, resolution)
+            overrides.setdefault("mapper", []).append(f"prior_map={json.dumps(str(prior.resolve()))}")
         add_service_overrides(stack, args.set, overrides)
     except (ConfigError, ValueError, OSError, LookupError, SimError) as exc:  # LookupError: an unknown world
         print(f"mjnav demo: {exc}", file=sys.stderr)
@@ -286,6 +319,7 @@ def _run(
         summary = _mission(bus, stack.names(), goals, info, args.timeout, rtf)
         summary.seed = args.seed
         summary.lockstep = not args.free_running
+        summary.known_map = args.known_map
         summary.wall_s = time.monotonic() - wall0
         return summary, (recorder.trace() if recorder is not None else None)
 
@@ -394,14 +428,15 @@ def _plots(trace: Any, goals: list[tuple[float, float]], world: str, out: Path) 
 
 def _print_summary(data: dict[str, Any], out: Path | None) -> None:
     lines = [
-        f"reached: {data['reached']}   collisions: {data['collisions']}",
+        f"reached: {data['reached']}   collisions: {data['collisions']}   "
+        f"map: {'known (--known-map)' if data['known_map'] else 'unknown at the start, explored'}",
         f"time: {data['time_s']} s sim   driven: {data['path_length_m']} m   optimal: {data['optimal_length_m']} m",
         f"v_max: {data['v_max_mps']} m/s   min clearance: {data['min_clearance_m']} m",
         f"pose source: {data['pose_source']}   ATE: {data['ate_rms_m']} m   loop closures: {data['loop_closures']}"
         f"   map accuracy (recall, precision): {data['map_accuracy']}",
     ]
     if out is not None:
-        names = ("run.png", "speed.png", "video.mp4", "scene.html", "world.xml")
+        names = ("run.png", "speed.png", "video.mp4", "scene.html", "world.xml", "known_map.yaml")
         extra = "".join(f", {name}" for name in names if (out / name).exists())
         lines.append(f"files in {out}: summary.json, map.yaml + map.pgm{extra}")
     print("\n".join(lines), file=sys.stderr)

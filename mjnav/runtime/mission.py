@@ -351,6 +351,7 @@ class MissionSummary:
     wall_s: float = math.nan
     achieved_rtf: float = math.nan
     pose_source: str = ""
+    known_map: bool = False
     ate_rms_m: float = math.nan
     loop_closures: int | None = None
     map_accuracy: list[float] | None = None

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from mjnav.commands.demo import AUTO_CLEARANCE_M, AUTO_GOAL_DISTANCE_M, reachable_goal, world_from_map
+from mjnav.commands.demo import AUTO_CLEARANCE_M, AUTO_GOAL_DISTANCE_M, known_map, reachable_goal, world_from_map
+from mjnav.mapping import read_ros_map
 from mjnav.sim.truth import FootprintClearance, shortest_length_m
 from mjnav.sim.worlds import MJCF_DIR, world_info
 
@@ -49,3 +51,21 @@ def test_a_map_file_becomes_a_world_with_a_seeded_start_and_goal(tmp_path: Path)
     assert (made[0].start, made[0].goal) != (made[2].start, made[2].goal)
     with pytest.raises(ValueError, match="resolution"):  # a ROS map carries its own
         world_from_map(str(DATA / "rooms_saved.yaml"), tmp_path / "x.xml", 0, 0.5)
+
+
+def test_the_known_map_is_the_map_file_itself_or_the_worlds_true_static_map(tmp_path: Path) -> None:
+    saved = DATA / "rooms_saved.yaml"
+    scene = world_from_map(str(saved), tmp_path / "saved.xml", 0, None)
+    assert known_map(str(saved), scene, tmp_path, 0.05) == saved  # unknown cells and all, as given
+    rooms = world_info("rooms")
+    given = read_ros_map(known_map("rooms", rooms.path, tmp_path, 0.05))
+    assert given.resolution_m == 0.05 and set(given.occupancy.ravel()) == {0, 100}
+    clearance = FootprintClearance("rooms")
+    cells = given.occupancy
+    rng = np.random.default_rng(5)
+    for r, c in rng.integers(0, cells.shape, size=(500, 2)):
+        x = given.origin_m[0] + (c + 0.5) * 0.05
+        y = given.origin_m[1] + (r + 0.5) * 0.05
+        d = clearance.obstacle_distance_m(x, y)
+        if abs(d) > 1e-9:
+            assert (cells[r, c] == 100) == (d < 0), (x, y, d)

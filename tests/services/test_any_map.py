@@ -23,13 +23,14 @@ pytestmark = pytest.mark.e2e  # processes or a live stack: see pyproject's marke
 DATA = Path(__file__).parent / "data"
 
 
-def _demo(out: Path, world: Path, seed: int) -> dict[str, Any]:
+def _demo(out: Path, world: Path, seed: int, *extra: str) -> dict[str, Any]:
     args = ["demo", "--world", str(world), "--seed", str(seed), "--rtf", "4", "--json", "--headless", "--out", str(out)]
-    proc = _mjnav(*args, "--timeout", "120", "--port", str(free_port()))
+    proc = _mjnav(*args, "--timeout", "120", "--port", str(free_port()), *extra)
     stdout, _ = proc.communicate(timeout=900)
     assert proc.returncode == 0, stdout[-3000:]
     summary: dict[str, Any] = json.loads(stdout.strip().splitlines()[-1])
     assert json.loads((out / "summary.json").read_text()) == summary
+    summary["_log"] = stdout
     return summary
 
 
@@ -93,3 +94,11 @@ def test_a_saved_rooms_map_runs_end_to_end(tmp_path: Path) -> None:
     for pose in (info.start, info.goal):  # inside the building (its outer walls are at x, y = ±5)
         assert abs(pose.x) < 4.9 and abs(pose.y) < 4.9
     _check_run(summary, scene)
+    assert summary["known_map"] is False and "prior map" not in summary["_log"]
+
+
+def test_with_known_map_the_mapper_starts_from_the_map_file(tmp_path: Path) -> None:
+    summary = _demo(tmp_path / "known", DATA / "rooms_saved.yaml", 1, "--known-map")
+    _check_run(summary, tmp_path / "known" / "world.xml")
+    assert summary["known_map"] is True
+    assert f"prior map {(DATA / 'rooms_saved.yaml').resolve()}: 243x243 cells at 0.050 m" in summary["_log"]
