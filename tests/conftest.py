@@ -69,24 +69,34 @@ def refdata() -> Path:
 #: Ports handed out by :func:`free_port`: below Linux's ephemeral range (32768–60999), from which the OS picks the
 #: local ports of outgoing connections, so no client socket takes one between the choice and the bind.
 _PORTS = range(20000, 32768)
+#: Ports per hand-out: the one returned and those ``--port BASE`` numbers after it for the stack's listeners
+#: (mjnav.runtime.stack.port_overrides), so a port handed out later never lands on one of them.
+_BLOCK = 8
 # Each process walks the range from its own point (a full turn before repeating), so two test runs side by side
 # do not hand out the same ports: no randomness involved.
-_next_port = _PORTS.start + (os.getpid() * 7919) % len(_PORTS)
+_next_port = _PORTS.start + (os.getpid() * 7919) % len(_PORTS) // _BLOCK * _BLOCK
+
+
+def _bindable(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+        return True
 
 
 def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now, outside the ephemeral range."""
+    """A TCP port on 127.0.0.1 that nothing listens on right now, outside the ephemeral range, with the
+    :data:`_BLOCK` - 1 ports after it free too (``--port BASE`` puts the stack's other listeners there)."""
     global _next_port
-    for _ in range(len(_PORTS)):
+    span = len(_PORTS) // _BLOCK * _BLOCK
+    for _ in range(span // _BLOCK):
         port = _next_port
-        _next_port = _PORTS.start + (port + 1 - _PORTS.start) % len(_PORTS)
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                continue
+        _next_port = _PORTS.start + (port + _BLOCK - _PORTS.start) % span
+        if all(_bindable(port + i) for i in range(_BLOCK)):
             return port
-    raise RuntimeError(f"no free TCP port in {_PORTS.start}..{_PORTS.stop - 1}")
+    raise RuntimeError(f"no {_BLOCK} free TCP ports in a row in {_PORTS.start}..{_PORTS.stop - 1}")
 
 
 @pytest.fixture

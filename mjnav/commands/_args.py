@@ -28,6 +28,19 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+def add_port_argument(parser: argparse.ArgumentParser, default: int) -> None:
+    """``--port BASE``: the router's port, and with it every port the stack opens (``args.port`` None: defaults)."""
+    parser.add_argument(
+        "--port",
+        type=int,
+        default=None,
+        metavar="BASE",
+        help=f"the router's port on 127.0.0.1 (default {default}); given, every other port the stack listens on "
+        "follows it: BASE+1, BASE+2, ... (the viewer's web and meshcat ports, Foxglove's), each an error when "
+        "taken; without it the services keep their own (the viewer 7000/6000, searching upwards when taken)",
+    )
+
+
 def add_packing_argument(parser: argparse.ArgumentParser) -> None:
     """``--process-per-service``: how the launcher packs the stack's services into processes."""
     parser.add_argument(

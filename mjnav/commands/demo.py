@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
-from mjnav.commands._args import add_packing_argument
+from mjnav.commands._args import add_packing_argument, add_port_argument
 from mjnav.commands._launch import run_beside_launcher, write_summary
 
 #: The demo's mission client: a lockstep participant, so goals leave at the same sim time in every run.
@@ -102,7 +102,7 @@ def register(sub: Any) -> None:
         help="give the robot the map at the start (the mapper's prior_map): a --world MAP.yaml as it is, any other "
         "world as its true static map at the mapper's resolution; default: the robot starts on an unknown map",
     )
-    p.add_argument("--port", type=int, default=7447, help="router port on 127.0.0.1 (default 7447)")
+    add_port_argument(p, 7447)
     p.add_argument("--stack", metavar="FILE", help="stack file (default services/stack.toml)")
     add_packing_argument(p)
     p.add_argument(
@@ -210,7 +210,7 @@ def run(args: argparse.Namespace) -> int:
     """``mjnav demo``."""
     from mjnav.runtime.config import ConfigError
     from mjnav.runtime.logs import setup_logging
-    from mjnav.runtime.stack import add_service_overrides, load_stack
+    from mjnav.runtime.stack import add_service_overrides, load_stack, port_overrides
     from mjnav.sim.errors import SimError
     from mjnav.sim.worlds import world_info
 
@@ -240,7 +240,8 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(rtf) and rtf >= 0):
             raise ValueError(f"--rtf must be a positive number or 'max', got {args.rtf!r}")
         stack = load_stack(args.stack)
-        overrides: dict[str, list[str]] = {"sim": [f"world={json.dumps(str(info.path))}", f"rtf={rtf}"]}
+        overrides = port_overrides(stack.select(None), args.port) if args.port is not None else {}
+        overrides["sim"] = [f"world={json.dumps(str(info.path))}", f"rtf={rtf}"]
         if args.record is not None:
             video = Path(args.record) if args.record else (out / "video.mp4" if out else None)
             if video is None:
@@ -294,7 +295,7 @@ def _run(
     try:
         launcher = Launcher(
             stack,
-            port=args.port,
+            port=7447 if args.port is None else args.port,
             overrides=overrides,
             out=sys.stderr if args.json else sys.stdout,
             extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,

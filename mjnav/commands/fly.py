@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from mjnav import jsonsafe
-from mjnav.commands._args import add_packing_argument, non_negative_float
+from mjnav.commands._args import add_packing_argument, add_port_argument, non_negative_float
 from mjnav.commands._launch import run_beside_launcher, write_summary
 
 #: The flight client's lockstep name.
@@ -61,7 +61,7 @@ def register(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as JSON on the last stdout line")
     p.add_argument("--world", default="field", help="UAV scene of mjcf/uav/ or an MJCF path (default field)")
     p.add_argument("--headless", action="store_true", help="open no browser or window")
-    p.add_argument("--port", type=int, default=7448, help="router port on 127.0.0.1 (default 7448)")
+    add_port_argument(p, 7448)
     p.add_argument("--stack", metavar="FILE", help="stack file (default services/uav_stack.toml)")
     add_packing_argument(p)
     p.add_argument(
@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
-    from mjnav.runtime.stack import add_service_overrides, load_stack, services_dir
+    from mjnav.runtime.stack import add_service_overrides, load_stack, port_overrides, services_dir
     from mjnav.sim.uav import UavSimulator
 
     setup_logging(args.log_level)
@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.out) if args.out else None
         if out is not None:
             out.mkdir(parents=True, exist_ok=True)
-        overrides: dict[str, list[str]] = {
+        overrides = port_overrides(stack.select(None), args.port) if args.port is not None else {}
+        overrides |= {
             "uav_sim": [
                 f"world={json.dumps(str(sim.path))}",
                 f"rtf={rtf}",
@@ -130,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
             ],
         }
         if "uav_viz" in stack.names() and out is not None:
-            overrides["uav_viz"] = [f"static_html={json.dumps(str((out / 'scene.html').resolve()))}"]
+            overrides.setdefault("uav_viz", []).append(f"static_html={json.dumps(str((out / 'scene.html').resolve()))}")
         if args.record is not None:
             video = Path(args.record) if args.record else (out / "fly.mp4" if out else None)
             if video is None:
@@ -145,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         launcher = Launcher(
             stack,
-            port=args.port,
+            port=7448 if args.port is None else args.port,
             overrides=overrides,
             out=sys.stderr if args.json else sys.stdout,
             extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mjnav.commands._args import add_packing_argument
+from mjnav.commands._args import add_packing_argument, add_port_argument
 
 
 def register(sub: Any) -> None:
@@ -64,7 +64,7 @@ def register(sub: Any) -> None:
     )
     up.add_argument("--only", metavar="A,B", help="comma-separated services to run (default: all)")
     up.add_argument("--ns", metavar="NAMESPACE", help="robot namespace (default: the stack's, robot0)")
-    up.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"router port (default {DEFAULT_PORT})")
+    add_port_argument(up, DEFAULT_PORT)
     up.add_argument("--duration", type=float, metavar="S", help="stop after S wall seconds (default: run until Ctrl-C)")
     up.add_argument("--headless", action="store_true", help="open no browser or window (always true without a display)")
     up.add_argument(
@@ -155,12 +155,12 @@ def run_service(args: argparse.Namespace) -> int:
 
 def run_up(args: argparse.Namespace) -> int:
     """``mjnav up``."""
-    from mjnav.bus import BusConfigError
+    from mjnav.bus import DEFAULT_PORT, BusConfigError
     from mjnav.bus.acl import AclError
     from mjnav.runtime.config import ConfigError
     from mjnav.runtime.launcher import Launcher
     from mjnav.runtime.logs import setup_logging
-    from mjnav.runtime.stack import add_service_overrides, load_stack
+    from mjnav.runtime.stack import add_service_overrides, load_stack, port_overrides
 
     setup_logging(args.log_level)
     try:
@@ -177,7 +177,7 @@ def run_up(args: argparse.Namespace) -> int:
                     print(f"container {proc.name}: {' '.join(proc.service_names())} (one process)")
             return 0
         only = [s.strip() for s in args.only.split(",") if s.strip()] + optional if args.only else None
-        overrides: dict[str, list[str]] = {}
+        overrides = port_overrides(stack.select(only), args.port) if args.port is not None else {}
         if args.world:
             stack.get("sim")
             overrides.setdefault("sim", []).append(f"world={json.dumps(args.world)}")
@@ -189,7 +189,7 @@ def run_up(args: argparse.Namespace) -> int:
             stack,
             only=only,
             namespace=args.ns,
-            port=args.port,
+            port=DEFAULT_PORT if args.port is None else args.port,
             duration_s=args.duration,
             overrides=overrides,
             extra_env={"MJNAV_HEADLESS": "1"} if args.headless else None,

@@ -196,6 +196,17 @@ class _Child:
         return self.spec.name
 
 
+def _probe_port(port: int, what: str, hint: str) -> None:
+    """Raise :class:`ConfigError` when ``port`` on 127.0.0.1 cannot be bound (``what`` wants it; ``hint``: the way
+    out)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind(("127.0.0.1", port))
+        except OSError as exc:
+            raise ConfigError(f"port {port} for {what} in use ({exc.strerror}): {hint}") from exc
+
+
 class Launcher:
     """Supervises the router and the services of one stack.
 
@@ -316,12 +327,16 @@ class Launcher:
                 raise ConfigError(f"{spec.name}: {exc}") from exc
         if not 0 < self.port < 65536:
             raise ConfigError(f"--port must be 1..65535, got {self.port}")
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
-                probe.bind(("127.0.0.1", self.port))
-            except OSError as exc:
-                raise ConfigError(f"port {self.port} in use ({exc.strerror}), use --port") from exc
+        _probe_port(self.port, "the router", "use --port")
+        for spec in self.specs:  # the ports the services listen on, unless they may search for a free one
+            cls = spec.load_class()
+            cfg = spec.load_config(dict(parse_override(item) for item in self.overrides.get(spec.name, [])))
+            if getattr(cfg, "port_search", 0):
+                continue
+            for key in cls.port_settings:
+                port = int(getattr(cfg, key))
+                if port:
+                    _probe_port(port, f"{spec.name}.{key}", "choose another --port base or --set it")
 
     @property
     def endpoint(self) -> str:

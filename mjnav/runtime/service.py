@@ -34,6 +34,8 @@ class Service(Generic[ConfigT]):
         uses_sim_time: step on the ``clock`` topic (True) or on wall time (False, e.g. the simulator itself).
         runs_alone: never shares a process (a relay that ignores what its own Zenoh session publishes would miss
             what its siblings publish).
+        port_settings: config keys holding the TCP ports the service listens on (0 = any free port), which
+            ``--port BASE`` numbers after the router's (:func:`mjnav.runtime.stack.port_overrides`).
         state_dir: a directory that outlives the process for the whole run (``$MJNAV_STATE_DIR``; ``mjnav up``
             makes one per run and removes it at the end): checkpoints a restarted service resumes from (the
             mapper's map, the planner's goal). None when the service runs on its own.
@@ -46,6 +48,7 @@ class Service(Generic[ConfigT]):
     config_class: ClassVar[type[Any]]
     uses_sim_time: ClassVar[bool] = True
     runs_alone: ClassVar[bool] = False
+    port_settings: ClassVar[tuple[str, ...]] = ()
     runtime_settable: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, config: ConfigT, bus: Bus, log: logging.Logger) -> None:

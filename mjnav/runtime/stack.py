@@ -291,6 +291,29 @@ def _containers(p: Path, entries: list[Any], services: set[str]) -> tuple[tuple[
     return tuple(out)
 
 
+def port_overrides(specs: list[ServiceSpec], base: int) -> dict[str, list[str]]:
+    """``--port BASE``: every port the services open, numbered after the router's: BASE + 1, BASE + 2, … in the order
+    of ``specs`` and of each service's :attr:`~mjnav.runtime.service.Service.port_settings`, with no search for
+    a free one (``port_search = 0`` where a service has it): one base moves them all, and a taken port is an error
+    (:meth:`mjnav.runtime.launcher.Launcher.check`), never a silent move to another.
+
+    Raises:
+        ConfigError: a port beyond 65535.
+    """
+    out: dict[str, list[str]] = {}
+    port = base
+    for spec in specs:
+        cls = spec.load_class()
+        for key in cls.port_settings:
+            port += 1
+            if port > 65535:
+                raise ConfigError(f"--port {base}: {spec.name}.{key} would be {port}, beyond 65535")
+            out.setdefault(spec.name, []).append(f"{key}={port}")
+        if cls.port_settings and "port_search" in {f.name for f in dataclasses.fields(cls.config_class)}:
+            out[spec.name].append("port_search=0")
+    return out
+
+
 def add_service_overrides(stack: Stack, items: list[str], overrides: dict[str, list[str]]) -> None:
     """Check ``SERVICE.KEY=VALUE`` items (``--set`` of ``mjnav up`` and ``mjnav demo``) and append them to
     ``overrides[SERVICE]`` as ``KEY=VALUE``.

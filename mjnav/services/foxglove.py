@@ -87,6 +87,7 @@ class FoxgloveService(Service[FoxgloveConfig]):
     name = "foxglove"
     config_class = FoxgloveConfig
     uses_sim_time = False
+    port_settings = ("port",)
 
     def configure(self) -> None:
         import foxglove

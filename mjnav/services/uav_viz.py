@@ -59,6 +59,7 @@ class UavVizService(Service[UavVizConfig]):
     name = "uav_viz"
     config_class = UavVizConfig
     uses_sim_time = False
+    port_settings = ("web_port", "zmq_port")
 
     def configure(self) -> None:
         from mjnav.viz import MeshcatClient, MeshcatServer, Scene

@@ -95,6 +95,7 @@ class VizService(Service[VizConfig]):
     name = "viz"
     config_class = VizConfig
     uses_sim_time = False
+    port_settings = ("web_port", "zmq_port")
 
     def configure(self) -> None:
         from mjnav.viz import MeshcatClient, MeshcatServer, NavView, Scene

@@ -9,6 +9,7 @@ from typing import Literal
 import pytest
 
 from mjnav.runtime import ConfigError, build_config, load_stack, parse_override
+from mjnav.runtime.stack import port_overrides
 from tests.conftest import REPO
 
 
@@ -159,3 +160,16 @@ def test_a_container_steps_on_one_clock_and_never_hosts_a_lone_service(
     with pytest.raises(ConfigError, match=match):
         stack.processes(stack.select(None))
     assert len(stack.processes(stack.select(None), packed=False)) == 4  # one per process stays possible
+
+
+def test_one_port_base_numbers_every_listener_after_the_routers() -> None:
+    ground = load_stack().with_services(["foxglove"])
+    assert port_overrides(ground.select(None), 9000) == {
+        "viz": ["web_port=9001", "zmq_port=9002", "port_search=0"],  # no silent move to another port
+        "foxglove": ["port=9003"],
+    }
+    assert port_overrides(ground.select(["sim", "slam"]), 9000) == {}
+    uav = load_stack(REPO / "services" / "uav_stack.toml")
+    assert port_overrides(uav.select(None), 7600) == {"uav_viz": ["web_port=7601", "zmq_port=7602", "port_search=0"]}
+    with pytest.raises(ConfigError, match="beyond 65535"):
+        port_overrides(ground.select(None), 65533)

@@ -220,8 +220,23 @@ def test_a_taken_port_is_named_and_nothing_starts() -> None:
         for command in ("up", "demo"):
             done = _mjnav(command, "--port", str(port))
             assert done.returncode == 2
-            assert f"port {port} in use" in done.stderr and "use --port" in done.stderr
+            assert f"port {port} for the router in use" in done.stderr and "use --port" in done.stderr
             assert "started" not in done.stdout + done.stderr
+
+
+def test_one_port_base_moves_the_viewer_and_a_taken_one_is_named_before_anything_starts() -> None:
+    with up_process("--only", "viz") as (port, _proc, lines):
+        assert wait_until(lambda: any("meshcat viewer at" in line for line in lines), 60.0), "".join(lines)
+    viewer = next(line for line in lines if "meshcat viewer at" in line)
+    assert f"http://127.0.0.1:{port + 1}/static/" in viewer and f"tcp://127.0.0.1:{port + 2}" in viewer
+    base = free_port()
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", base + 2))
+        taken.listen()
+        done = _mjnav("up", "--port", str(base))
+    assert done.returncode == 2
+    assert f"port {base + 2} for viz.zmq_port in use" in done.stderr and "--port base" in done.stderr
+    assert "started" not in done.stdout + done.stderr
 
 
 def test_health_without_a_router_answers_within_its_timeout() -> None:
