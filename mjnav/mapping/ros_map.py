@@ -182,6 +182,8 @@ def _read_pillow(path: Path, data: bytes) -> _Pixels:
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             img.load()
             return _pillow_pixels(path, img)
+    except MapFileError:
+        raise
     except UnidentifiedImageError as exc:
         raise MapFileError(
             f"{path}: not an image map_server reads (PGM, PPM, PNG, BMP, JPEG, TIFF, GIF, ...), or a corrupt one"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -189,6 +190,15 @@ def test_a_bad_image_of_any_format_is_a_map_file_error(tmp_path: Path, image: by
     (tmp_path / "x.png").write_bytes(image)
     with pytest.raises(MapFileError, match=match):
         read_ros_map(_map_yaml(tmp_path, "x.png"))
+
+
+def test_a_floating_point_image_is_named_as_such(tmp_path: Path) -> None:
+    from PIL import Image
+
+    Image.fromarray(np.zeros((4, 4), dtype=np.float32), mode="F").save(tmp_path / "f.tiff")
+    message = f"{tmp_path / 'f.tiff'}: a floating-point image is not a map (mode F)"
+    with pytest.raises(MapFileError, match=f"^{re.escape(message)}$"):
+        read_ros_map(_map_yaml(tmp_path, "f.tiff"))
 
 
 def test_a_truncated_png_is_a_map_file_error(tmp_path: Path) -> None:
