@@ -159,6 +159,8 @@ class ServiceRunner:
         self._config_lock = threading.Lock()
         self._step_started: float | None = None  # time.monotonic() when the running step began (None: between steps)
         self.hosted: list[_Hosted] = []
+        #: The loop's clock (sim or wall time) once it runs.
+        self.clock: WallClock | SimClock | None = None
 
     # -------------------------------------------------------------------------------------- one service's view
 
@@ -262,6 +264,7 @@ class ServiceRunner:
             clock = SimClock(root, gates)
         else:
             clock = WallClock()
+        self.clock = clock
         for h in self.hosted:
             h.service = h.unit.service_cls(h.config, h.bus, h.log)
             h.service.configure()
@@ -315,6 +318,9 @@ class ServiceRunner:
     def _loop(self, clock: WallClock | SimClock) -> None:
         next_status = time.monotonic()
         waited_for_clock = False
+        # Restarts handled so far: a clock that goes back while the services step (between two waits) must not be
+        # taken for the new baseline, or the loop would wait for a time the new timeline reaches only much later.
+        seen_jumps = clock.jumps_back
         while not self.stop_event.is_set():
             if time.monotonic() >= next_status:
                 self._send_statuses(clock.now(), new_period=True)
@@ -333,15 +339,15 @@ class ServiceRunner:
                         continue
                 for h in self.hosted:  # every schedule starts at the first clock (or the restart's)
                     h.schedule = Schedule.every(float(h.config.rate_hz), clock.now())
-            jumps = clock.jumps_back
             due = min(h.schedule.next_s for h in self.hosted if h.schedule is not None)
             try:
-                now = clock.wait_until(due - 1e-9, _StopAfter(self.stop_event, STATUS_PERIOD_S), jumps)
+                now = clock.wait_until(due - 1e-9, _StopAfter(self.stop_event, STATUS_PERIOD_S), seen_jumps)
             except StopRequested:
                 continue
             except ClockJumpedBack:
                 now = clock.now()
-            if clock.jumps_back != jumps:
+            if clock.jumps_back != seen_jumps:
+                seen_jumps = clock.jumps_back
                 # The simulator restarted: time-dependent state is void. Re-activate the services (their activate()
                 # resets that state) and re-sync the loop on the new timeline.
                 self.log.warning("the clock went back to %.3f s: re-activating", now)

@@ -76,3 +76,45 @@ def test_steps_follow_sim_time_and_count_overruns(peer: Callable[..., Bus], rout
         runner.stop_event.set()
         thread.join(10.0)
     assert not thread.is_alive()
+
+
+JUMP_AT = 0.3
+RESTART: dict[str, object] = {}  # the test's clock publisher and the runner, for the service below
+
+
+class RestartedWhileStepping(Counting):
+    """At sim time JUMP_AT its step sends the sim's restart (clock 0) and returns only once the runner's clock has
+    counted it: the jump lands between two waits of the loop, the moment that froze it."""
+
+    name = "restarted"
+
+    def step(self, now: float) -> None:
+        if now == JUMP_AT and not ACTIVATIONS[1:]:
+            RESTART["clock"].put(ros.clock(0.0))  # type: ignore[attr-defined]
+            runner = RESTART["runner"]
+            assert wait_until(lambda: runner.clock.jumps_back == 1, 5.0)  # type: ignore[attr-defined]
+        super().step(now)
+
+
+def test_a_restart_that_arrives_while_a_step_runs_is_not_missed(peer: Callable[..., Bus], router_endpoint: str) -> None:
+    STEPS.clear()
+    ACTIVATIONS.clear()
+    runner = ServiceRunner(RestartedWhileStepping, CountingConfig(), BusConfig(connect=(router_endpoint,)), "robot0")
+    thread = threading.Thread(target=runner.run)
+    thread.start()
+    try:
+        sim = peer()
+        clock = sim.publisher("clock")
+        RESTART.update(clock=clock, runner=runner)
+        assert clock.wait_for_subscribers(5.0)
+        assert wait_until(lambda: sim.alive_services() == ["restarted"], 5.0)
+        for i, t in enumerate((0.0, 0.1, 0.2, JUMP_AT)):
+            clock.put(ros.clock(t))
+            assert _wait_steps(i + 1), f"no step at sim time {t}"
+        # The step at 0.3 sent clock 0: the service is re-activated and steps at 0 on the new timeline.
+        assert _wait_steps(5), "the loop missed the restart that came while it stepped"
+        assert STEPS == [0.0, 0.1, 0.2, JUMP_AT, 0.0] and ACTIVATIONS == [0, 4]
+    finally:
+        runner.stop_event.set()
+        thread.join(10.0)
+    assert not thread.is_alive()
