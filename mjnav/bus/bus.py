@@ -269,6 +269,7 @@ class Subscription:
         self._by_key: dict[str, Any] = {}
         self._queue: deque[Any] = deque()
         self._fresh = False
+        self._read = False  # a message was handed out (latest/take/drain/wait): wait() then waits for a newer one
         self._waiters = 0  # threads in wait(): delivery only notifies when there are any
         self.count = 0
         self._wildcard = "*" in key
@@ -368,12 +369,14 @@ class Subscription:
         """The newest message received (``None`` before the first)."""
         self._pull()
         with self._cond:
+            self._read |= self._latest is not None
             return self._latest
 
     def latest_by_key(self) -> dict[str, Any]:
         """Newest message per concrete key (useful on wildcard subscriptions such as ``status/*``)."""
         self._pull()
         with self._cond:
+            self._read |= bool(self._by_key)
             return dict(self._by_key)
 
     def take(self) -> Any:
@@ -383,6 +386,7 @@ class Subscription:
             if not self._fresh:
                 return None
             self._fresh = False
+            self._read = True
             return self._latest
 
     def drain(self) -> list[Any]:
@@ -395,19 +399,25 @@ class Subscription:
             items = list(self._queue)
             self._queue.clear()
             self._fresh = False
+            self._read |= bool(items)
             return items
 
     def wait(self, timeout_s: float, predicate: Callable[[Any], bool] | None = None) -> Any:
         """Wait until a message arrives (that satisfies ``predicate``, when given); returns it or ``None``.
 
-        Only messages arriving after the call count, unless ``predicate`` already holds for the newest one. A
-        lossy subscription looks at its ring buffer every :data:`LOSSY_POLL_S` (nothing signals an arrival there).
+        Only messages arriving after the call count, unless ``predicate`` already holds for the newest one, or
+        nothing has been read from this subscription yet (then the newest message counts, whenever it arrived: a
+        latched topic's history may well arrive between :meth:`Bus.subscribe` and this call, and is never sent
+        again). A lossy subscription looks at its ring buffer every :data:`LOSSY_POLL_S` (nothing signals an
+        arrival there).
         """
         deadline = time.monotonic() + timeout_s
         self._pull()
         with self._cond:
-            if predicate is not None and self._latest is not None and predicate(self._latest):
-                return self._latest
+            newest = self._latest
+            if newest is not None and (not self._read if predicate is None else predicate(newest)):
+                self._read = True
+                return newest
             seen = self.count
         while True:
             self._pull()
@@ -415,6 +425,7 @@ class Subscription:
                 if self.count != seen:
                     seen = self.count
                     if predicate is None or predicate(self._latest):
+                        self._read = True
                         return self._latest
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:

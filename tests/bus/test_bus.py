@@ -31,6 +31,21 @@ def test_snapshot_topic_delivers_decoded_messages_and_keeps_the_newest(peer: Pee
     assert b.stats.rejected == 0 and a.stats.published == 20
 
 
+def test_a_latched_message_that_arrived_before_wait_is_returned_by_it(peer: Peer) -> None:
+    """A late joiner's history can arrive between subscribe() and wait(): wait() must still hand it out (it failed
+    4 times in 11 under load, the sim test's tf_static), and a second wait() waits for a newer message."""
+    a, b = peer(), peer()
+    pub = a.publisher("tf_static")
+    pub.put(ros.tf_message(ros.transform_stamped_3d(0.0, "base_link", "laser", (0.0, 0.0, 0.2), (0.0, 0.0, 0.0, 1.0))))
+    arrived = threading.Event()
+    sub = b.subscribe("tf_static", callback=lambda _msg: arrived.set())
+    assert arrived.wait(10.0), "the latched message never reached the late joiner"
+    first = sub.wait(10.0)  # it arrived before the call
+    assert first is not None and first.transforms[0].child_frame_id == "laser"
+    assert sub.wait(0.2) is None  # already handed out: only a newer one counts now
+    assert sub.latest() is first
+
+
 @pytest.mark.e2e
 def test_event_topic_keeps_every_message_in_order(peer: Peer) -> None:
     a, b = peer(), peer()
