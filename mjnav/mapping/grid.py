@@ -261,6 +261,32 @@ def _free_line(
 
 
 @njit(cache=True)
+def _grazing_stop(ends: NDArray[np.float64], k: int, dx: float, dy: float, margin: float) -> float:
+    """How much of return k's beam (unit direction (dx, dy)) runs within ``margin`` of the surface it ends on.
+
+    The surface's direction at the return is taken towards each neighbouring return (k − 1, k + 1); with α the
+    angle between the beam and the surface, the beam's last ``margin / sin α`` lies within ``margin`` of it. The
+    steeper side counts (a neighbour on another surface, behind an edge, makes its side look shallow). A beam
+    that grazes a wall (α small) passes through the cells of the wall's face before it ends further along: its
+    misses would clear that face wherever no return of the same scan ends, opening holes that the planner takes
+    for a way through the wall. Without a neighbouring return the margin itself is left out.
+    """
+    sin_a = 0.0
+    found = False
+    for j in (k - 1, k + 1):
+        if 0 <= j < ends.shape[0] and not math.isnan(ends[j, 0]):
+            tx = ends[j, 0] - ends[k, 0]
+            ty = ends[j, 1] - ends[k, 1]
+            d = math.hypot(tx, ty)
+            if d > 0.0:
+                found = True
+                sin_a = max(sin_a, abs(dx * ty - dy * tx) / d)
+    if not found:
+        return margin
+    return margin / max(sin_a, 1e-12)
+
+
+@njit(cache=True)
 def _scan_kernel(
     log_odds: NDArray[np.float64],
     stamp: NDArray[np.uint8],
@@ -281,15 +307,17 @@ def _scan_kernel(
     trig_angles: NDArray[np.float64],
     trig_cos: NDArray[np.float64],
     trig_sin: NDArray[np.float64],
+    grazing: float,
 ) -> None:
-    """Update ``log_odds`` in place with one scan. Positions, ``max_range`` and ``min_range`` are in cell
-    units (1 cell = res metres); ``ranges`` are metres and are multiplied by ``inv_res``.
+    """Update ``log_odds`` in place with one scan. Positions, ``max_range``, ``min_range`` and ``grazing`` are
+    in cell units (1 cell = res metres); ``ranges`` are metres and are multiplied by ``inv_res``.
 
     ``stamp`` dedups per scan (1 <= base <= 252): values < base are untouched this scan, base itself the end
     cell of a beam with ``marks[k]`` False (no miss, no hit unless another beam ends there), base + 1 a pending
     hit, base + 2 a cell already updated. Each cell gets at most one update per scan; a hit beats a
     pass-through. ``trig_*`` cache cos/sin of the beam angles between calls (recomputed where the angle
-    changed).
+    changed). ``grazing`` > 0: a return's free cells stop where its beam comes within ``grazing`` of the surface
+    it ends on (:func:`_grazing_stop`).
     """
     H, W = log_odds.shape
     lf = log_odds.reshape(-1)
@@ -300,12 +328,18 @@ def _scan_kernel(
     n = angles.shape[0]
     seg = np.empty((n, 4), dtype=np.int64)
     hit = np.zeros(n, dtype=np.bool_)
+    hit_cell = np.empty(n, dtype=np.int64)
     valid = np.zeros(n, dtype=np.bool_)
+    ends = np.full((n, 2), np.nan)  # every return's end point (NaN: no return), for the surfaces' directions
+    cut = np.zeros(n)  # how much of each beam's end its free cells leave out
     ct = math.cos(theta)
     st = math.sin(theta)
     fw = float(W)
     fh = float(H)
-    # Pass 1: beam segments clipped to the grid rectangle; pending hits.
+    # Pass 1: each beam's direction and length; the end points of returns.
+    live = np.zeros(n, dtype=np.bool_)
+    length = np.zeros(n)
+    dirs = np.zeros((n, 2))
     for k in range(n):
         ak = angles[k]
         r = ranges[k] * inv_res
@@ -315,12 +349,42 @@ def _scan_kernel(
             trig_angles[k] = ak
             trig_cos[k] = math.cos(ak)
             trig_sin[k] = math.sin(ak)
-        is_hit = True
+        dirs[k, 0] = ct * trig_cos[k] - st * trig_sin[k]
+        dirs[k, 1] = st * trig_cos[k] + ct * trig_sin[k]
         if r >= max_range or math.isnan(r):  # +inf or NaN: no return within range, free up to max range
             r = max_range
-            is_hit = False
-        ex = sx + r * (ct * trig_cos[k] - st * trig_sin[k])
-        ey = sy + r * (st * trig_cos[k] + ct * trig_sin[k])
+        else:
+            ends[k, 0] = sx + r * dirs[k, 0]
+            ends[k, 1] = sy + r * dirs[k, 1]
+        length[k] = r
+        live[k] = True
+    if grazing > 0.0:
+        for k in range(n):
+            if not math.isnan(ends[k, 0]):
+                cut[k] = _grazing_stop(ends, k, dirs[k, 0], dirs[k, 1], grazing)
+    # Pass 1b: pending hits; free segments clipped to the grid rectangle.
+    for k in range(n):
+        if not live[k]:
+            continue
+        dx = dirs[k, 0]
+        dy = dirs[k, 1]
+        if not math.isnan(ends[k, 0]):
+            r1 = math.floor(ends[k, 1])
+            c1 = math.floor(ends[k, 0])
+            if 0 <= r1 < H and 0 <= c1 < W:  # a return outside the grid marks nothing
+                idx = r1 * W + c1
+                if marks[k]:
+                    hit[k] = True
+                    hit_cell[k] = idx
+                    if sf[idx] <= b:
+                        sf[idx] = pending
+                elif sf[idx] < b:
+                    sf[idx] = b
+        free = length[k] - cut[k]
+        if free <= 0.0:
+            continue  # the whole beam grazes its surface: it frees nothing
+        ex = sx + free * dx
+        ey = sy + free * dy
         ok, t0, t1 = _clip_segment(sx, sy, ex, ey, 0.0, fw, 0.0, fh)
         if not ok:
             continue
@@ -329,26 +393,14 @@ def _scan_kernel(
         if t0 > 0.0:
             bx = sx + t0 * (ex - sx)
             by = sy + t0 * (ey - sy)
-        r1 = math.floor(ey)
-        c1 = math.floor(ex)
         if t1 < 1.0:
-            is_hit = False
             ex = sx + t1 * (ex - sx)
             ey = sy + t1 * (ey - sy)
-            r1 = math.floor(ey)
-            c1 = math.floor(ex)
-        elif is_hit and 0 <= r1 < H and 0 <= c1 < W:
-            if marks[k]:
-                hit[k] = True
-                if sf[r1 * W + c1] <= b:
-                    sf[r1 * W + c1] = pending
-            elif sf[r1 * W + c1] < b:
-                sf[r1 * W + c1] = b
         # Clipped points lie on the closed rectangle; clamp the cells on its far edges (x = W, y = H) inward.
         seg[k, 0] = min(max(math.floor(by), 0), H - 1)
         seg[k, 1] = min(max(math.floor(bx), 0), W - 1)
-        seg[k, 2] = min(max(r1, 0), H - 1)
-        seg[k, 3] = min(max(c1, 0), W - 1)
+        seg[k, 2] = min(max(math.floor(ey), 0), H - 1)
+        seg[k, 3] = min(max(math.floor(ex), 0), W - 1)
         valid[k] = True
     # Pass 2: free cells along each beam (canonical Bresenham, see mjnav.mapping.lines).
     for k in range(n):
@@ -357,7 +409,7 @@ def _scan_kernel(
     # Pass 3: hits, once per cell.
     for k in range(n):
         if hit[k]:
-            idx = seg[k, 2] * W + seg[k, 3]
+            idx = hit_cell[k]
             if sf[idx] == pending:
                 lf[idx] = min(max(lf[idx] + d_hit, lo), hi)
                 sf[idx] = done
@@ -732,6 +784,7 @@ class OccupancyGrid:
         *,
         min_range_m: float = 0.0,
         marks: ArrayLike | None = None,
+        grazing_margin_m: float = 0.0,
     ) -> None:
         """Fuse one planar range scan into the grid (in place).
 
@@ -767,13 +820,19 @@ class OccupancyGrid:
             marks: (N,) bool, default all True. A beam with False is clearing-only (Nav2's obstacle layer has
                 marking and clearing sources; a moving obstacle's return is the case here): it frees the cells
                 before its end cell and leaves the end cell as it is (unless another beam ends there).
+            grazing_margin_m: > 0: a return frees no cell where its beam runs within this distance of the surface
+                it ends on (the surface's direction from the neighbouring returns; the last
+                ``grazing_margin_m / sin α`` of a beam meeting it at angle α). A beam grazing a wall otherwise
+                crosses the cells of the wall's face before it ends further along, and its misses clear the face
+                wherever no return of the same scan ends: holes a planner takes for a way through. 0 (default):
+                the textbook update above.
 
         Raises:
             InvalidPoseError: the pose has NaN/inf or not 3 components.
             InvalidGridError: angles/ranges are not 1-D real arrays of equal length, or marks is not a bool array
                 of their length.
-            InvalidParameterError: max_range_m not finite/positive or over 1e12 cells, or min_range_m
-                negative/non-finite.
+            InvalidParameterError: max_range_m not finite/positive or over 1e12 cells, or min_range_m or
+                grazing_margin_m negative/non-finite.
 
         A sensor more than 1e12 cells from the grid origin cannot reach it within ``max_range_m``; such a
         scan is a no-op.
@@ -799,6 +858,9 @@ class OccupancyGrid:
         min_r = _finite(min_range_m, "min_range_m")
         if min_r < 0.0:
             raise InvalidParameterError(f"min_range_m must be >= 0, got {min_r}")
+        grazing = _finite(grazing_margin_m, "grazing_margin_m")
+        if grazing < 0.0:
+            raise InvalidParameterError(f"grazing_margin_m must be >= 0, got {grazing}")
         inv_res = 1.0 / self._resolution
         if max_r * inv_res > _MAX_RANGE_CELLS:
             raise InvalidParameterError(
@@ -833,6 +895,7 @@ class OccupancyGrid:
             m.min_log_odds,
             m.max_log_odds,
             *self._trig_cache(angles.shape[0]),
+            grazing * inv_res,
         )
 
     def _trig_cache(self, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:

@@ -68,6 +68,10 @@ class MapperConfig:
         grow_margin_m: when a scan touches cells beyond the grid, the grid grows to hold them plus this much
             (metres), so that it grows every few metres of driving, not at every scan.
         max_range_m: readings at or beyond this are "no return" (free up to it).
+        grazing_margin_m: a return frees no cell where its beam runs within this distance of the surface it ends
+            on (:meth:`~mjnav.mapping.OccupancyGrid.integrate_scan`): beams that graze a long wall otherwise
+            clear holes in its face, which the planner took for ways through the wall (issue 30: 258 m driven
+            along a 30 m wall). About two cells; 0 = the textbook update.
         inflation_radius_m: cost decays to 0 at this distance from obstacles (0.7 left a 1.4 m corridor one
             zero-cost line, its centre: paths 20 % longer than the shortest in the maze; 0.5, near Nav2's 0.55,
             leaves a band to round corners in). Cells within the robot's footprint radius (from its description)
@@ -89,6 +93,7 @@ class MapperConfig:
     resolution_m: float = 0.05
     grow_margin_m: float = 2.0
     max_range_m: float = 12.0
+    grazing_margin_m: float = 0.1
     inflation_radius_m: float = 0.5
     cost_scaling_factor: float = 5.0
     prior_map: str = ""
@@ -100,8 +105,9 @@ class MapperConfig:
         for name in ("publish_rate_hz", "resolution_m", "max_range_m", "moving_speed_mps", "inflation_radius_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if not self.grow_margin_m >= 0:
-            raise ValueError(f"grow_margin_m must be >= 0, got {self.grow_margin_m}")
+        for name in ("grow_margin_m", "grazing_margin_m"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not self.checkpoint_period_s >= 0:
             raise ValueError(f"checkpoint_period_s must be >= 0, got {self.checkpoint_period_s}")
         if not self.maps_dir:
@@ -315,7 +321,15 @@ class MapperService(Service[MapperConfig]):
             return
         marks = np.ones(len(ranges), dtype=bool)
         marks[tracked.beams[moving]] = False
-        grid.integrate_scan(sensor, angles, ranges, max_range, min_range_m=float(scan.range_min), marks=marks)
+        grid.integrate_scan(
+            sensor,
+            angles,
+            ranges,
+            max_range,
+            min_range_m=float(scan.range_min),
+            marks=marks,
+            grazing_margin_m=self.config.grazing_margin_m,
+        )
 
     def _on_walls(self, points: Any) -> Any:
         """(M,) True for points on or next to a cell the grid has as occupied: static, whatever two scans say."""

@@ -317,6 +317,40 @@ def test_integrate_scan_bad_input_raises_typed_errors(pose, angles, ranges, max_
     assert np.all(g.log_odds == 0.0)
 
 
+@pytest.mark.parametrize("margin", [float("nan"), float("inf"), -0.1])
+def test_a_bad_grazing_margin_is_a_typed_error(margin: float) -> None:
+    g = unit_grid()
+    with pytest.raises(InvalidParameterError, match="grazing_margin_m"):
+        g.integrate_scan((5.0, 5.0, 0.0), [0.0], [2.0], 5.0, grazing_margin_m=margin)
+    assert np.all(g.log_odds == 0.0)
+
+
+def _scans_along_a_wall(margin_m: float) -> OccupancyGrid:
+    """A robot driving along a wall whose face is the line y = -0.02 m (inside a row of 5 cm cells), 0.5 m from
+    it, scanning (360 beams, 12 m) every 0.1 m for 10 m: the far beams meet the wall at a few degrees."""
+    g = OccupancyGrid(600, 100, 0.05, (-15.0, -2.0))
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    for x in np.arange(-5.0, 5.0, 0.1):
+        heading = np.sin(angles)  # the beams' y direction (the robot faces +x)
+        with np.errstate(divide="ignore"):
+            ranges = np.where(heading < 0, (0.5 + 0.02) / -heading, np.inf)
+        g.integrate_scan((x, 0.5, 0.0), angles, np.minimum(ranges, np.inf), 12.0, grazing_margin_m=margin_m)
+    return g
+
+
+def test_beams_grazing_a_wall_do_not_clear_its_face() -> None:
+    """Issue 30: beams that meet a long wall at a shallow angle cross the cells of its face before they end
+    further along; their misses cleared the face wherever no return ended (holes the planner took for a way
+    through). With a grazing margin no cell holding wall is ever cleared, and the free side still is."""
+    face_and_behind = np.s_[:40, 200:400]  # rows below y = 0 (the face's row and the wall), x in [-5, 5]
+    plain = _scans_along_a_wall(0.0)
+    assert (plain.log_odds[face_and_behind] < 0).any()  # what happened: the wall's face was cleared
+    guarded = _scans_along_a_wall(0.1)
+    assert not (guarded.log_odds[face_and_behind] < 0).any()
+    assert (guarded.states()[39, 200:400] == CellState.OCCUPIED).all()  # the face, solid along the drive
+    assert (guarded.states()[45:49, 200:400] == CellState.FREE).all()  # the free space before it, still free
+
+
 def test_empty_scan_is_a_no_op() -> None:
     g = unit_grid()
     g.integrate_scan((1.0, 1.0, 0.0), [], [], 5.0)
