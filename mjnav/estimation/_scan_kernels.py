@@ -638,10 +638,33 @@ def _score(
 
 
 @njit(cache=True)
+def lattice_score(
+    table: NDArray[np.float64], rows: NDArray[np.int64], cols: NDArray[np.int64], a: int, dr: int, dc: int
+) -> float:
+    """:func:`_score` for callers outside the kernels (the score of the chosen pose, without the prior)."""
+    return _score(table, rows, cols, a, dr, dc)
+
+
+@njit(cache=True)
+def _prior(a: int, dr: int, dc: int, a0: int, pen_cell: float, pen_ang: float) -> float:
+    """The prior's penalty of lattice offset (a, dr, dc) from the centre (a0, 0, 0), in summed-score units."""
+    da = a - a0
+    return pen_cell * (dr * dr + dc * dc) + pen_ang * da * da
+
+
+@njit(cache=True)
 def brute_force(
-    table: NDArray[np.float64], rows: NDArray[np.int64], cols: NDArray[np.int64], wr: int, wc: int
+    table: NDArray[np.float64],
+    rows: NDArray[np.int64],
+    cols: NDArray[np.int64],
+    wr: int,
+    wc: int,
+    a0: int,
+    pen_cell: float,
+    pen_ang: float,
 ) -> tuple[int, int, int, float]:
-    """Best (angle index, dr, dc, summed score) over every angle and every offset |dr| <= wr, |dc| <= wc.
+    """Best (angle index, dr, dc, summed score − prior) over every angle and every offset |dr| <= wr,
+    |dc| <= wc; the prior is :func:`_prior` (0 with both penalties 0).
 
     Ties keep the first in (angle, dr, dc) lexicographic order.
     """
@@ -652,7 +675,7 @@ def brute_force(
     for a in range(rows.shape[0]):
         for dr in range(-wr, wr + 1):
             for dc in range(-wc, wc + 1):
-                v = _score(table, rows, cols, a, dr, dc)
+                v = _score(table, rows, cols, a, dr, dc) - _prior(a, dr, dc, a0, pen_cell, pen_ang)
                 if v > best:
                     best = v
                     ba = a
@@ -669,13 +692,16 @@ def branch_and_bound(
     wr: int,
     wc: int,
     min_score: float,
+    a0: int,
+    pen_cell: float,
+    pen_ang: float,
 ) -> tuple[int, int, int, float, int]:
     """Exact maximum of :func:`brute_force`'s objective by depth-first branch and bound (Hess et al. 2016).
 
     A node (a, r0, c0, h) stands for the offsets r0..r0+2^h−1 × c0..c0+2^h−1 at angle a; its score on level h
-    bounds every offset it covers. Children are visited best first; a node whose bound does not exceed the
-    best leaf so far (initially ``min_score``) is pruned. Returns (a, dr, dc, score, nodes scored);
-    score = −inf when nothing beats ``min_score``.
+    bounds every offset it covers (the prior only lowers a leaf's score: the bounds stay bounds). Children
+    are visited best first; a node whose bound does not exceed the best leaf so far (initially ``min_score``)
+    is pruned. Returns (a, dr, dc, score, nodes scored); score = −inf when nothing beats ``min_score``.
     """
     L = pyr.shape[0]
     A = rows.shape[0]
@@ -702,6 +728,8 @@ def branch_and_bound(
             for j in range(nc):
                 c0 = -wc + j * step
                 sc[k] = _score(pyr[top], rows, cols, a, r0, c0)
+                if top == 0:
+                    sc[k] -= _prior(a, r0, c0, a0, pen_cell, pen_ang)
                 ta[k] = a
                 tr[k] = r0
                 tc[k] = c0
@@ -750,6 +778,8 @@ def branch_and_bound(
                 if ccol > wc:
                     continue
                 cs[nch] = _score(pyr[h - 1], rows, cols, a, rr, ccol)
+                if h == 1:
+                    cs[nch] -= _prior(a, rr, ccol, a0, pen_cell, pen_ang)
                 cr[nch] = rr
                 cc[nch] = ccol
                 nch += 1

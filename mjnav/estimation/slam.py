@@ -192,6 +192,8 @@ _MAY_BE_ZERO = {
     "loop_min_travel_m",
     "loop_min_overlap",
     "optimize_min_chi2",
+    "match_translation_cost",
+    "match_rotation_cost",
 }
 
 
@@ -221,6 +223,8 @@ class PoseEstimate:
             scan could not be matched and the pose is the odometry prediction).
         matched: True when the scan was matched, False when the pose is dead reckoning.
         keyframe: index of the keyframe this scan created, or −1.
+        degenerate: the match pinned the pose only partly (a corridor: across it, not along it; the odometry
+            carries the rest).
     """
 
     pose: FloatArray
@@ -229,6 +233,7 @@ class PoseEstimate:
     score: float
     matched: bool
     keyframe: int = -1
+    degenerate: bool = False
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -248,6 +253,12 @@ class SlamConfig:
         match_window_m: front-end search half-width in x and y around the odometry prediction, metres.
         match_window_rad: front-end search half-width in θ, radians.
         match_angular_step_rad: angular step of the front end's correlative search, radians.
+        match_translation_cost, match_rotation_cost: the front end's prior towards the odometry prediction (mean
+            score per m² and per rad², :meth:`~mjnav.estimation.scan_matching.CorrelativeGridMatcher.match`).
+            Without it, along a wall seen only side-on every offset scores alike and the search takes the first
+            of them, a window's width (0.3 m) off (PL-ICP, flagging the match degenerate, then starts again
+            from the prediction; a weaker feature may keep it from being flagged). 0.1 each, the weights of
+            Cartographer's real-time matcher.
         icp_max_correspondence_m: PL-ICP correspondences farther than this are ignored, metres.
         min_match_inliers: a refined match with fewer than this share of scan points matched is rejected.
         keyframe_distance_m: a scan becomes a keyframe after this much translation since the last one, metres.
@@ -308,6 +319,8 @@ class SlamConfig:
     match_window_m: float = 0.3
     match_window_rad: float = math.radians(10.0)
     match_angular_step_rad: float = math.radians(0.5)
+    match_translation_cost: float = 0.1
+    match_rotation_cost: float = 0.1
     icp_max_correspondence_m: float = 0.3
     min_match_inliers: float = 0.3
     keyframe_distance_m: float = 0.3
@@ -637,7 +650,7 @@ class GraphSlam:
             self._record(t)
             return self._estimate(1.0, True, 0)
         predicted = _compose1(self._pose, _relative1(self._odom, odom))
-        pose, cov, score, matched = self._match_local(scan, predicted)
+        pose, cov, score, matched, degenerate = self._match_local(scan, predicted)
         self._pose, self._odom = pose, odom
         self._cov = cov
         kf = -1
@@ -646,10 +659,10 @@ class GraphSlam:
         if math.hypot(d[0], d[1]) >= cfg.keyframe_distance_m or abs(d[2]) >= cfg.keyframe_angle_rad:
             kf = self._add_keyframe(t, scan, loop=True)
         self._record(t)
-        return self._estimate(score, matched, kf)
+        return self._estimate(score, matched, kf, degenerate)
 
-    def _estimate(self, score: float, matched: bool, kf: int) -> PoseEstimate:
-        return PoseEstimate(self.pose, self.covariance, self.map_to_odom(), float(score), matched, kf)
+    def _estimate(self, score: float, matched: bool, kf: int, degenerate: bool = False) -> PoseEstimate:
+        return PoseEstimate(self.pose, self.covariance, self.map_to_odom(), float(score), matched, kf, degenerate)
 
     def _record(self, t: float) -> None:
         k = len(self._graph.poses) - 1
@@ -660,12 +673,13 @@ class GraphSlam:
     def _floor_cov(self, cov: FloatArray) -> FloatArray:
         return _floor_cov(cov, self.config.min_sigma_m, self.config.min_sigma_rad)
 
-    def _match_local(self, scan: _Scan, predicted: FloatArray) -> tuple[FloatArray, FloatArray, float, bool]:
-        """Front end: CSM then PL-ICP against the local map; the prediction when both fail."""
+    def _match_local(self, scan: _Scan, predicted: FloatArray) -> tuple[FloatArray, FloatArray, float, bool, bool]:
+        """Front end: CSM then PL-ICP against the local map; the prediction when both fail. Returns the pose, its
+        covariance, the match quality, whether the scan was matched and whether the match was degenerate."""
         cfg = self.config
         local = self._local
         sm, sr = _DEAD_RECKONING_SIGMA
-        dead_reckoning = (predicted, self._cov + np.diag([sm * sm, sm * sm, sr * sr]), 0.0, False)
+        dead_reckoning = (predicted, self._cov + np.diag([sm * sm, sm * sm, sr * sr]), 0.0, False, False)
         if local is None or scan.points.shape[0] < 3:
             return dead_reckoning
         matcher, ref = local
@@ -677,6 +691,8 @@ class GraphSlam:
                 angular_window_rad=cfg.match_window_rad,
                 angular_step_rad=cfg.match_angular_step_rad,
                 min_score=0.0,
+                translation_cost=cfg.match_translation_cost,
+                rotation_cost=cfg.match_rotation_cost,
             )
         except ScanMatchError:
             return dead_reckoning
@@ -684,22 +700,23 @@ class GraphSlam:
             fine = ref.match(
                 scan.points, coarse.pose, "plicp", max_correspondence_m=cfg.icp_max_correspondence_m, max_iterations=50
             )
-            if fine.degenerate:
+            degenerate = fine.degenerate
+            if degenerate:
                 # A corridor: the correlative search is flat along it and may pick any offset there; PL-ICP from
                 # the odometry prediction keeps the prediction in the unobservable direction instead.
                 corr = cfg.icp_max_correspondence_m
                 fine = ref.match(scan.points, predicted, "plicp", max_correspondence_m=corr, max_iterations=50)
                 coarse = fine
         except ScanMatchError:
-            return coarse.pose.copy(), self._floor_cov(coarse.covariance), 0.0, True
+            return coarse.pose.copy(), self._floor_cov(coarse.covariance), 0.0, True, False
         jump = _relative1(coarse.pose, fine.pose)
         if (
             fine.score < cfg.min_match_inliers
             or math.hypot(jump[0], jump[1]) > 2.0 * cfg.match_resolution_m + 0.05
             or abs(jump[2]) > 2.0 * cfg.match_angular_step_rad + math.radians(1.0)
         ):
-            return coarse.pose.copy(), self._floor_cov(coarse.covariance), float(fine.score), True
-        return fine.pose.copy(), self._floor_cov(fine.covariance), float(fine.score), True
+            return coarse.pose.copy(), self._floor_cov(coarse.covariance), float(fine.score), True, degenerate
+        return fine.pose.copy(), self._floor_cov(fine.covariance), float(fine.score), True, degenerate
 
     # -- keyframes, submaps, loops ------------------------------------------------------------------------------
 

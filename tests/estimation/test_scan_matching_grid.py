@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mjnav.estimation import CorrelativeGridMatcher, NoMatchError, ScanMatchError
+from mjnav.estimation.scan_matching import likelihood_field
 from mjnav.mapping import GridFrame, OccupancyGrid
 from tests.estimation._scans import ROOM, raycast, relative, scan_points
 
@@ -49,6 +50,41 @@ def test_branch_and_bound_equals_brute_force_on_an_occupancy_grid() -> None:
     assert np.allclose(bnb.pose, brute.pose)
     assert bnb.method == "bnb" and brute.method == "brute_force"
     assert bnb.iterations < brute.iterations / 5  # the bounds prune on a real map
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_branch_and_bound_equals_brute_force_with_a_prior(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    frame = GridFrame(0.1, (0.0, 0.0), (40, 50))
+    matcher = CorrelativeGridMatcher(rng.random((40, 50)) ** 4, frame, depth=4)
+    scan = rng.uniform(-1.0, 1.0, (25, 2))
+    kw = {"linear_window_m": 0.9, "angular_window_rad": 0.3, "angular_step_rad": 0.05}
+    prior = {"translation_cost": 0.3, "rotation_cost": 0.5}
+    bnb = matcher.match(scan, (2.5, 2.0, 0.2), **kw, **prior)
+    brute = matcher.match_brute_force(scan, (2.5, 2.0, 0.2), **kw, **prior)
+    assert bnb.score == brute.score and np.array_equal(bnb.pose, brute.pose)
+    plain = matcher.match(scan, (2.5, 2.0, 0.2), **kw)
+    # The prior moves the answer towards the initial pose (or keeps it): never further.
+    assert np.hypot(*(bnb.pose[:2] - (2.5, 2.0))) <= np.hypot(*(plain.pose[:2] - (2.5, 2.0))) + 1e-12
+    with pytest.raises(ScanMatchError, match="translation_cost"):
+        matcher.match(scan, (2.5, 2.0, 0.2), **kw, translation_cost=-1.0)
+
+
+def test_a_prior_keeps_the_initial_pose_along_a_corridor() -> None:
+    """Issue 30: seen side-on, two long walls score alike at every offset along them; without a prior the search
+    took the first such offset, the window's edge (0.3 m off), scan after scan."""
+    xs = np.arange(-12.0, 12.0, 0.02)
+    walls = np.r_[np.c_[xs, np.full_like(xs, 1.5)], np.c_[xs, np.full_like(xs, -1.5)]]
+    table, frame, scale = likelihood_field(walls, 0.05)
+    matcher = CorrelativeGridMatcher(table, frame, depth=3, loglik_scale=scale)
+    a = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    a = a[np.abs(np.sin(a)) > 0.13]  # returns within 12 m
+    r = 1.5 / np.abs(np.sin(a))
+    scan = np.c_[r * np.cos(a), r * np.sin(a)]
+    kw = {"linear_window_m": 0.3, "angular_window_rad": math.radians(5), "angular_step_rad": math.radians(0.5)}
+    assert abs(matcher.match(scan, (0.1, 0.0, 0.0), **kw).pose[0] - 0.1) > 0.25  # the edge of the window
+    kept = matcher.match(scan, (0.1, 0.0, 0.0), **kw, translation_cost=0.1, rotation_cost=0.1)
+    assert kept.pose == pytest.approx((0.1, 0.0, 0.0), abs=1e-9)
 
 
 def test_loop_closure_window_finds_the_pose_far_from_the_initial_guess() -> None:
