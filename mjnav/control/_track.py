@@ -213,11 +213,19 @@ def signed_cross_track(pts: FloatArray, k: int, x: float, y: float, d2: float) -
     return math.copysign(math.sqrt(d2), side) if side != 0.0 else math.sqrt(d2)
 
 
+#: Distance from the path (metres) beyond which the closest point is searched for over the whole path again.
+RELOCATE_M = 0.3
+
+
 class PathProgress:
     """Where a tracker stands on its current path; the state every tracker shares.
 
     Holds the prepared-path cache, the closest segment (searched over the whole path on the first call, then
-    forward only, within a window), and the goal latch. A path with new contents restarts all of it.
+    forward only, within a window), and the goal latch. A path with new contents restarts all of it. When the
+    forward search finds the path more than :data:`RELOCATE_M` away, the whole path is searched again: a pose
+    corrected backwards along the path (SLAM in a corridor) is then behind the segment the search starts from,
+    and the forward search alone measured the distance along the path as an offset from it (issue 30: 1.13 m
+    "off the path" on a free route; the controller stopped for good).
     """
 
     __slots__ = ("cache", "fresh", "index", "reached")
@@ -250,6 +258,10 @@ class PathProgress:
             self.reached = False
         window = math.inf if self.fresh else search_window_m
         k, t, d2 = project_forward(prepared.points, prepared.cum, x, y, self.index, window)
+        if d2 > RELOCATE_M * RELOCATE_M and self.index > 0:
+            k0, t0, d0 = project_forward(prepared.points, prepared.cum, x, y, 0, math.inf)
+            if d0 < d2:
+                k, t, d2 = k0, t0, d0
         self.index = k
         self.fresh = False
         return prepared, k, t, d2, is_new

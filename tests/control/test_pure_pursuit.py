@@ -90,6 +90,19 @@ def test_forward_search_does_not_jump_back_on_a_hairpin() -> None:
     assert pp.status.cross_track_m == pytest.approx(0.0, abs=1e-9)
 
 
+def test_a_pose_corrected_backwards_along_the_path_is_found_on_it_again() -> None:
+    """Issue 30: SLAM moved the pose 1.2 m back along a corridor; the forward-only search, starting at the segment
+    the robot had reached, measured those 1.2 m as an offset from the path, and the controller stopped "off the
+    path" on a free route for good."""
+    line = np.c_[np.linspace(0.0, 10.0, 101), np.zeros(101)]
+    pp = PurePursuit()
+    for x in np.linspace(0.0, 5.0, 26):
+        pp.compute((x, 0.0, 0.0), 0.5, line)
+    assert pp.closest_index >= 49  # the segment ending at x = 5
+    pp.compute((3.85, 0.02, 0.0), 0.5, line)
+    assert pp.closest_index == 38 and pp.status.cross_track_m == pytest.approx(0.02, abs=1e-9)
+
+
 def test_same_path_contents_keep_state_new_path_restarts() -> None:
     pp = PurePursuit()
     pp.compute((6.05, 0.0, 0.0), 0.5, STRAIGHT)  # first call: whole-path search
