@@ -23,6 +23,10 @@ from mjnav.runtime.participant import LockstepParticipant
 
 _STATUS = msg_class("mjnav_msgs/msg/GoalStatus")
 _FINAL = {_STATUS.STATE_REACHED: "reached", _STATUS.STATE_FAILED: "failed", _STATUS.STATE_CANCELED: "canceled"}
+#: A goal the planner reports reached counts as reached only when the robot's true position is this close to it
+#: (metres; the controller stops within its goal tolerance of where the robot *believes* it is): farther, the
+#: localisation was wrong and the result is ``mislocalized``.
+ARRIVAL_TOLERANCE_M = 0.5
 
 
 @dataclass
@@ -32,7 +36,9 @@ class GoalOutcome:
     Attributes:
         goal: (x, y) in the map frame, metres.
         goal_id: the planner's id for it (0 when never accepted).
-        result: ``reached``, ``failed``, ``canceled`` or ``timeout``.
+        result: ``reached``, ``failed``, ``canceled``, ``timeout`` or ``mislocalized`` (the planner reported it
+            reached, but the true position was more than :data:`ARRIVAL_TOLERANCE_M` from it).
+        true_distance_m: the robot's true distance from the goal when the goal ended (NaN without a true pose).
         error_code: GoalStatus error code (0 = none).
         error_text: the planner's reason.
         time_s: sim seconds from sending the goal to its end (the stamp of its final status: for a goal reached,
@@ -49,6 +55,7 @@ class GoalOutcome:
     time_s: float = 0.0
     path_length_m: float = 0.0
     start: tuple[float, float] = (math.nan, math.nan)
+    true_distance_m: float = math.nan
 
 
 @dataclass
@@ -260,6 +267,14 @@ class MissionClient(LockstepParticipant):
                 return
             current.time_s = ended - job.t0
             current.path_length_m = track.length_m - job.length0
+            if track.last is not None:
+                current.true_distance_m = math.hypot(track.last.x - current.goal[0], track.last.y - current.goal[1])
+                if current.result == "reached" and current.true_distance_m > ARRIVAL_TOLERANCE_M:
+                    current.result = "mislocalized"
+                    current.error_text = (
+                        f"reported reached, but the robot is {current.true_distance_m:.2f} m from the goal "
+                        f"(more than {ARRIVAL_TOLERANCE_M:g} m): its localisation was wrong"
+                    )
             job.outcomes.append(current)
             job.current = None
             if current.result != "reached":
