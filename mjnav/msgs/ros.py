@@ -16,6 +16,8 @@ _NS_PER_S = 1_000_000_000
 # Message classes resolved once: these builders run on hot paths (the sim publishes thousands per second).
 _types = typestore().types
 _Clock = _types["rosgraph_msgs/msg/Clock"]
+_DiagnosticStatus = _types["diagnostic_msgs/msg/DiagnosticStatus"]
+_KeyValue = _types["diagnostic_msgs/msg/KeyValue"]
 _Header = _types["std_msgs/msg/Header"]
 _Imu = _types["sensor_msgs/msg/Imu"]
 _JointState = _types["sensor_msgs/msg/JointState"]
@@ -226,6 +228,17 @@ def transform_stamped_3d(
         child_frame_id=child_frame,
         transform=_Transform(translation=_Vector3(x=px, y=py, z=pz), rotation=_Quaternion(x=qx, y=qy, z=qz, w=qw)),
     )
+
+
+def diagnostic_status(level: int, name: str, message: str, values: dict[str, str], hardware_id: str = "") -> Any:
+    """diagnostic_msgs/DiagnosticStatus: ``level`` 0 OK, 1 WARN, 2 ERROR, 3 STALE; ``values`` as its KeyValue list."""
+    pairs = [_KeyValue(key=k, value=v) for k, v in values.items()]
+    return _DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id, values=pairs)
+
+
+def diagnostic_values(msg: Any) -> dict[str, str]:
+    """The KeyValue list of a diagnostic_msgs/DiagnosticStatus as a dict."""
+    return {kv.key: kv.value for kv in msg.values}
 
 
 def tf_message(*transforms: Any) -> Any:

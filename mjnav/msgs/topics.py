@@ -180,6 +180,15 @@ TOPICS: dict[str, Topic] = {
             "The robot's estimated pose in `map` (SLAM's `map` → `odom` composed with the newest odometry)",
         ),
         Topic(
+            "localization_health",
+            "diagnostic_msgs/msg/DiagnosticStatus",
+            _S,
+            "slam",
+            "10 Hz (each scan)",
+            "How well SLAM localises: level OK, WARN (degraded: on odometry) or ERROR (lost), why, and values "
+            "(returns, match_score, bad_scans, unmatched_m); the controller slows, then stops, on it",
+        ),
+        Topic(
             "initialpose",
             "geometry_msgs/msg/PoseWithCovarianceStamped",
             _E,
@@ -496,6 +505,7 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "ground_truth": ("sim", "uav_sim"),
     "truth": ("sim",),
     "pose": ("slam",),
+    "localization_health": ("slam",),
     "initialpose": ("sim", OPERATOR),
     "robot_description": ("sim",),
     "tf_static": ("sim",),

@@ -19,6 +19,10 @@ progress — the robot has not moved ``progress_radius_m`` in ``progress_timeout
 the planner turns into ``ERROR_TIMEOUT``. A controller that (re)starts late gets the planner's newest status and the
 smoother's newest path from their latched topics. The robot's footprint radius comes from the robot description
 the sim latches (:mod:`mjnav.runtime.robot`).
+
+On SLAM's pose (``pose_source = "slam"``) the controller also follows SLAM's ``localization_health``: while the
+localisation is degraded (running on odometry) it drives at most ``degraded_speed_scale`` of its speed, and
+while it is lost it stops, saying why in its feedback and log, until SLAM localises again.
 """
 
 from __future__ import annotations
@@ -82,6 +86,9 @@ class ControllerConfig:
         progress_timeout_s, progress_radius_m: report no progress (the planner fails the goal with
             ``ERROR_TIMEOUT``) when the robot stayed within ``progress_radius_m`` for ``progress_timeout_s`` sim
             seconds while the goal was active.
+        degraded_speed_scale: on SLAM's pose, the fraction of ``max_speed_mps`` the robot keeps to while SLAM
+            reports its localisation degraded (``localization_health`` WARN); it stops while SLAM reports it lost
+            (ERROR).
     """
 
     rate_hz: float = 20.0
@@ -109,6 +116,7 @@ class ControllerConfig:
     scan_timeout_s: float = 0.5
     progress_timeout_s: float = 20.0
     progress_radius_m: float = 0.25
+    degraded_speed_scale: float = 0.5
 
     def __post_init__(self) -> None:
         for name in (
@@ -126,6 +134,8 @@ class ControllerConfig:
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0 < self.degraded_speed_scale <= 1:
+            raise ValueError(f"degraded_speed_scale must be in (0, 1], got {self.degraded_speed_scale}")
         if not self.chord_margin_m >= 0:
             raise ValueError(f"chord_margin_m must be >= 0, got {self.chord_margin_m}")
         if not self.rotate_max_radps >= self.rotate_min_radps:
@@ -179,12 +189,15 @@ class ControllerService(Service[ControllerConfig]):
         self.scan_sub = self.bus.subscribe("scan")
         self.map_sub = self.bus.subscribe("map")
         self.status_sub = self.bus.subscribe("goal_status")
+        slam = self.config.pose_source == "slam"
+        self.health_sub = self.bus.subscribe("localization_health") if slam else None
         self.cmd_pub = self.bus.publisher("cmd_vel")
         self.feedback_pub = self.bus.publisher("controller_feedback")
         self.status_cls = msg_class(_STATUS)
         self.feedback_cls = msg_class(_FEEDBACK)
         self.finished: set[int] = set()  # goal ids that ended (a late status must not revive them)
         self.stopped_reason = ""
+        self.slowed = ""  # the localisation problem the robot is slowed for ("" = not slowed)
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
 
@@ -358,6 +371,10 @@ class ControllerService(Service[ControllerConfig]):
             self._stop("no recent pose")
             return
         pose = latest[1]
+        health = None if self.health_sub is None else self.health_sub.latest()
+        if health is not None and health.level >= health.ERROR:
+            self._stop("localisation lost: waiting for SLAM to localise again", health.message)
+            return
         if self.at_goal_xy:
             self._turn_to_goal(now, pose)
             return
@@ -382,13 +399,24 @@ class ControllerService(Service[ControllerConfig]):
         if abs(status.cross_track_m) > self.config.lost_distance_m:
             self._stop("off the path: waiting for a new plan", f"{abs(status.cross_track_m):.2f} m off")
             return
-        self._drive(*self._checked(now, pose, v, w))
+        note = ""
+        if health is not None and health.level == health.WARN:
+            cap = self.config.degraded_speed_scale * self.config.max_speed_mps
+            if abs(v) > cap:  # slower on the same arc
+                v, w = math.copysign(cap, v), w * cap / abs(v)
+            note = "slowed: localisation degraded"
+            if self.slowed != health.message.split(";")[0]:
+                self.slowed = health.message.split(";")[0]
+                self.log.info("localisation degraded: slowed to %.2f m/s (%s)", cap, health.message)
+        else:
+            self.slowed = ""
+        self._drive(*self._checked(now, pose, v, w), note)
 
-    def _drive(self, v: float, w: float) -> None:
+    def _drive(self, v: float, w: float, note: str = "") -> None:
         self.stopped_reason = ""
         self.speed = v
         self.cmd_pub.put(ros.twist(v, w))
-        self._report(self.feedback_cls.STATE_FOLLOWING)
+        self._report(self.feedback_cls.STATE_FOLLOWING, note)
 
     def _turn_to_goal(self, now: float, pose: Pose2D) -> None:
         """At the goal's position: turn in place towards its yaw, or report the arrival (yaw-free goals at once)."""

@@ -31,7 +31,7 @@ import json
 import math
 import os
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -81,6 +81,19 @@ class PlannerConfig:
             out fails with ``ERROR_OUTSIDE_MAP``.
         costmap_timeout_s: a costmap stamped longer ago than this (sim s) is stale: not planned on, and the plan is
             withdrawn until a fresh one arrives (the mapper publishes at 2 Hz).
+        off_route_m: a robot further than this from its route (SLAM corrected its pose across it, or the
+            controller swerved around something) gets a new route from where it is at the next costmap, as for
+            a blocked one; below the controller's ``lost_distance_m`` (1 m), beyond which it stops and waits for
+            one. Before, the planner kept a route it found valid and the controller waited for 20 s of no
+            progress (issue 30, the wall map).
+        cycle_distance_m: the robot is cycling when it is back at a place (a :data:`PLACE_M` square) it passed
+            at least this far of driving ago, and its route from there is no shorter than it was then (by
+            :data:`PROGRESS_M`): each route it tried through unknown space turned out closed, and the next one
+            looks just as short (issue 30: 258 m of shuttling along a wall with a gap 3 m further on). The goal's
+            unknown space then costs ``cycle_unknown_factor`` times more, and the planner plans afresh, so known
+            routes win over the next guess. 0 = never.
+        cycle_unknown_factor: how much dearer unknown space becomes for the goal at each cycle (> 1; at most
+            :data:`MAX_UNKNOWN_FACTOR` times ``unknown_cost`` in all).
         seed: seed of the potential field's random escapes.
     """
 
@@ -97,6 +110,9 @@ class PlannerConfig:
     improvement: float = 0.9
     unknown_margin_m: float = 10.0
     costmap_timeout_s: float = 3.0
+    off_route_m: float = 0.6
+    cycle_distance_m: float = 10.0
+    cycle_unknown_factor: float = 4.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -110,6 +126,12 @@ class PlannerConfig:
             raise ValueError(f"costmap_timeout_s must be > 0, got {self.costmap_timeout_s}")
         if not self.unknown_margin_m >= 0:
             raise ValueError(f"unknown_margin_m must be >= 0, got {self.unknown_margin_m}")
+        if not self.off_route_m > 0:
+            raise ValueError(f"off_route_m must be > 0, got {self.off_route_m}")
+        if not self.cycle_distance_m >= 0:
+            raise ValueError(f"cycle_distance_m must be >= 0, got {self.cycle_distance_m}")
+        if not self.cycle_unknown_factor > 1:
+            raise ValueError(f"cycle_unknown_factor must be > 1, got {self.cycle_unknown_factor}")
 
 
 _ERRORS: list[tuple[type[PlanningError], str]] = [
@@ -118,6 +140,14 @@ _ERRORS: list[tuple[type[PlanningError], str]] = [
     (OutsideMap, "ERROR_OUTSIDE_MAP"),
     (NoPathFound, "ERROR_NO_PATH"),
 ]
+
+
+#: Side of the squares (metres) the planner remembers the robot passing through, to notice it cycling.
+PLACE_M = 1.0
+#: A route from a place shorter by at least this (metres) than at the last pass there is progress.
+PROGRESS_M = 1.0
+#: The most a goal's cycles multiply ``unknown_cost`` by.
+MAX_UNKNOWN_FACTOR = 256.0
 
 
 @dataclass
@@ -131,6 +161,12 @@ class _Goal:
     following: bool = False
     path_msg: Any = None
     withdrawn: bool = False  # the plan was withdrawn (stale costmap) and must be sent again
+    unknown_factor: float = 1.0  # multiplies unknown_cost for this goal; raised at each cycle
+    cycles: int = 0
+    driven_m: float = 0.0
+    last_xy: tuple[float, float] | None = None
+    # Place (PLACE_M square) -> (driven_m, route length from there) at the robot's last pass through it.
+    places: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)
 
 
 class PlannerService(Service[PlannerConfig]):
@@ -352,11 +388,12 @@ class PlannerService(Service[PlannerConfig]):
         if goal.withdrawn:
             goal.withdrawn = False
             goal.cells = None  # plan afresh on the fresh costmap
+        robot = latest[1]
+        self._watch_cycles(now, goal, robot)
         fresh = stamp != self.grid_stamp
         if goal.cells is not None and not fresh:
             return
         cells, frame = ros.grid_frame(costmap_msg)
-        robot = latest[1]
         outside = self._too_far_outside(frame, goal.pose.x, goal.pose.y)
         if outside is not None:
             self._end(now, "FAILED", "ERROR_OUTSIDE_MAP", outside)
@@ -370,7 +407,7 @@ class PlannerService(Service[PlannerConfig]):
             # The costmap grew: the same route, indexed in the new grid (same cells, shifted).
             goal.cells, goal.frame = frame.world_to_cells(route), frame
         occupied, cost = planning_grid(
-            cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost
+            cells, cost_weight=self.config.cost_weight, unknown_cost=self.config.unknown_cost * goal.unknown_factor
         )
         start = frame.world_to_cell(robot.x, robot.y)
         target = frame.world_to_cell(goal.pose.x, goal.pose.y)
@@ -378,6 +415,9 @@ class PlannerService(Service[PlannerConfig]):
             occupied = clear_disc(occupied, start, self.config.start_clearance_m / frame.resolution_m)
         remaining = None if goal.cells is None else self._remaining(goal.cells, start)
         blocked_path = remaining is not None and bool(occupied[remaining[:, 0], remaining[:, 1]].any())
+        if remaining is not None and not blocked_path:
+            off_m = float(np.hypot(*(remaining - np.asarray(start)).T).min()) * frame.resolution_m
+            blocked_path = off_m > self.config.off_route_m  # replan from where the robot is, and take it
         periodic = now - goal.last_plan_t >= self.config.replan_period_s
         if remaining is not None and not blocked_path and not periodic:
             self.grid_stamp = stamp
@@ -424,6 +464,35 @@ class PlannerService(Service[PlannerConfig]):
             plan.cost,
             plan.expanded,
         )
+
+    def _watch_cycles(self, now: float, goal: _Goal, robot: Pose2D) -> None:
+        """Notice the robot cycling (see ``cycle_distance_m``) and make unknown space dearer for the goal."""
+        cfg = self.config
+        if goal.last_xy is not None:
+            goal.driven_m += math.hypot(robot.x - goal.last_xy[0], robot.y - goal.last_xy[1])
+        goal.last_xy = (robot.x, robot.y)
+        if cfg.cycle_distance_m <= 0 or goal.cells is None or goal.frame is None:
+            return
+        start = goal.frame.world_to_cell(robot.x, robot.y)
+        route = goal.frame.cells_to_world(self._remaining(goal.cells, start))
+        length = float(np.hypot(*np.diff(route, axis=0).T).sum()) if len(route) > 1 else 0.0
+        place = (math.floor(robot.x / PLACE_M), math.floor(robot.y / PLACE_M))
+        before = goal.places.get(place)
+        goal.places[place] = (goal.driven_m, length)
+        if before is None or goal.driven_m - before[0] < cfg.cycle_distance_m or length < before[1] - PROGRESS_M:
+            return
+        factor = min(goal.unknown_factor * cfg.cycle_unknown_factor, MAX_UNKNOWN_FACTOR)
+        goal.cycles += 1
+        text = (
+            f"cycling: back at ({robot.x:.1f}, {robot.y:.1f}) after {goal.driven_m - before[0]:.1f} m with a route "
+            f"of {length:.1f} m (was {before[1]:.1f} m): unknown space now costs "
+            f"{cfg.unknown_cost * factor:g} (was {cfg.unknown_cost * goal.unknown_factor:g}); planning afresh"
+        )
+        self.log.warning("goal %d: %s", goal.goal_id, text)
+        goal.unknown_factor = factor
+        goal.places.clear()
+        goal.cells = None
+        self._status(now, goal, "PLANNING", text=text)
 
     # ----------------------------------------------------------------------------------------- checkpoint
 

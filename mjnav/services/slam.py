@@ -14,6 +14,11 @@ follows the wheels between scans — and ``map → odom`` on ``tf``; ``map`` goe
 Where the lidar sits on the robot comes from the robot description the sim latches (:mod:`mjnav.runtime.robot`):
 each scan is placed at the frame its header names.
 
+Each scan used updates the localisation's health (:mod:`mjnav.estimation.health`: enough returns, matched, match
+quality; a corridor's degenerate match), published on ``localization_health`` (``diagnostic_msgs/DiagnosticStatus``:
+OK, WARN = degraded, on odometry, ERROR = lost) and logged when it changes; while lost, the status says so. The
+controller slows on a degraded localisation and stops on a lost one.
+
 In mapping mode the SLAM state is checkpointed in the run's state directory every ``checkpoint_period_s``, so a
 restarted slam service resumes the same map and pose graph. The checkpoint grows by what is new
 (:class:`SlamCheckpoint`): each keyframe's scan and each finished submap is written once.
@@ -32,6 +37,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from mjnav.estimation.health import Health, HealthMonitor
 from mjnav.estimation.slam import GraphSlam, Localizer, LocalizerConfig, SlamConfig, SlamError, compose, invert
 from mjnav.geometry import Pose2D, PoseHistory
 from mjnav.mapping import OccupancyGrid, read_ros_map
@@ -116,6 +122,8 @@ class SlamService(Service[SlamServiceConfig]):
         self.pose_pub = self.bus.publisher("pose")
         self.tf_pub = self.bus.publisher("tf")
         self.map_pub = self.bus.publisher("map")
+        self.health_pub = self.bus.publisher("localization_health")
+        self.health = HealthMonitor()
         self.bus.serve("slam_info", self._on_info)
         self.slam: GraphSlam | None = None
         self.localizer: Localizer | None = None
@@ -145,6 +153,8 @@ class SlamService(Service[SlamServiceConfig]):
             return f"odometry on {self.bus.key('odom')}"
         if self.now - self.last_scan_used > STARVED_AFTER_S:
             return f"scans on {self.scan.key} (none used for {STARVED_AFTER_S:g} s)"
+        if self.health.report.level is Health.LOST:
+            return f"scans it can localise with: lost ({self.health.report.reason})"
         return ""
 
     def _lidar_pose(self, frame: str) -> tuple[float, float, float] | None:
@@ -299,8 +309,28 @@ class SlamService(Service[SlamServiceConfig]):
             return
         self.scans += 1
         self.last_scan_used = self.now
+        usable = (ranges >= scan.range_min) & (ranges < min(float(scan.range_max), self.config.max_range_m))
+        self._report_health(stamp, odom_xyt, int(np.count_nonzero(usable)), est)
         self.map_to_odom = np.asarray(compose(compose(est.map_to_odom, odom_xyt), invert(raw_xyt)), dtype=float)
         self.covariance = np.asarray(est.covariance, dtype=float)
+
+    def _report_health(self, stamp: float, odom_xyt: tuple[float, float, float], returns: int, est: Any) -> None:
+        """Update the localisation's health with a scan, publish it, log a change of level."""
+        before = self.health.report.level
+        report = self.health.update(odom_xyt, returns, est.score, est.matched, est.degenerate)
+        if report.level != before:
+            if report.level > before:
+                self.log.warning("localisation %s: %s", report.level.name.lower(), report.reason)
+            else:
+                self.log.info("localisation %s again", report.level.name.lower())
+        values = {
+            "returns": str(report.returns),
+            "match_score": f"{report.score:.3f}",
+            "bad_scans": str(report.bad_scans),
+            "unmatched_m": f"{report.unmatched_m:.3f}",
+            "stamp": f"{stamp:.6f}",
+        }
+        self.health_pub.put(ros.diagnostic_status(int(report.level), "slam", report.reason or "localised", values))
 
     def _new_slam(self, odom: Pose2D, laser: tuple[float, float, float]) -> GraphSlam:
         assert self.start is not None

@@ -334,6 +334,38 @@ def test_controller_on_slam_composes_map_to_odom_with_fresh_odometry(peer: Peer)
     assert h.received["cmd_vel"][-1].linear.x == 0.0
 
 
+def test_controller_slows_on_a_degraded_localisation_and_stops_on_a_lost_one(peer: Peer) -> None:
+    """Issue 30: on SLAM's pose the controller follows SLAM's localization_health: WARN caps the speed at
+    degraded_speed_scale of max_speed_mps on the same arc, ERROR stops the robot and says why; OK again drives on."""
+    h = Harness(
+        ControllerService, peer, ("cmd_vel", "controller_feedback"), pose_source="slam", pose_timeout_s=0.5,
+        max_speed_mps=0.5, degraded_speed_scale=0.4,
+    )  # fmt: skip
+    line = np.c_[np.linspace(0.0, 6.0, 61), np.ones(61)]
+    h.send("goal_status", _status(1.0, 1, STATUS.STATE_FOLLOWING))
+    h.send("path", ros.path_msg(1.0, "map", line))
+    t, count = 1.0, 0
+
+    def drive(level: int, message: str) -> object:
+        nonlocal t, count
+        h.send("localization_health", ros.diagnostic_status(level, "slam", message, {}))
+        for _ in range(10):  # a few steps: the speed ramps up
+            t += 0.05
+            h.send("scan", _clear_scan(t))
+            _send_slam_pose(h, t, map_to_odom=Pose2D(0.0, 1.0, 0.0), odom=Pose2D(0.2, 0.0, 0.0))
+            count += 1
+            h.step(t, {"cmd_vel": count})
+        return h.received["cmd_vel"][-1]
+
+    assert drive(0, "localised").linear.x == pytest.approx(0.5)
+    assert drive(1, "12 lidar returns, fewer than 30; 3 scan(s) in a row").linear.x == pytest.approx(0.2)
+    assert wait_until(lambda: h.received["controller_feedback"][-1].text == "slowed: localisation degraded", 10.0)
+    assert drive(2, "12 lidar returns, fewer than 30; 30 scan(s) in a row, 2.0 m").linear.x == 0.0
+    lost = "localisation lost: waiting for SLAM to localise again"
+    assert wait_until(lambda: h.received["controller_feedback"][-1].text == lost, 10.0)
+    assert drive(0, "localised").linear.x == pytest.approx(0.5)
+
+
 @pytest.mark.e2e
 def test_controller_reports_no_progress(peer: Peer) -> None:
     """Nav2's progress checker: no 0.25 m of motion in 20 s and the controller gives the goal up, telling the
@@ -354,7 +386,8 @@ def test_controller_reports_no_progress(peer: Peer) -> None:
     step(45.1)  # 20.1 s within 0.25 m of (0.3, 0)
     assert wait_until(lambda: _reports(h)[-1] == (1, FEEDBACK.STATE_NO_PROGRESS), 10.0), _reports(h)
     assert "no progress" in h.received["controller_feedback"][-1].text and h.service.goal is None
-    assert h.received["cmd_vel"][-1].linear.x == 0.0
+    # The stop goes out in the same step; it may arrive after the (latched) feedback.
+    assert wait_until(lambda: h.received["cmd_vel"][-1].linear.x == 0.0, 10.0)
 
 
 @pytest.mark.e2e
@@ -442,6 +475,52 @@ def test_a_goal_beyond_what_the_robot_has_seen_is_planned_through_unknown_space(
     assert _states(planner)[-1] == (1, STATUS.STATE_FOLLOWING, 0)
     pts = ros.path_points(planner.received["plan"][-1])
     assert pts[-1] == pytest.approx((5.5, 2.05), abs=RES) and pts[:, 0].max() > 4.0
+
+
+def test_a_robot_off_its_route_gets_a_new_one_from_where_it_is(planner: Harness) -> None:
+    """Issue 30: SLAM corrected the pose 1.1 m across the route; the route itself was still free, so the planner
+    kept it, and the controller (stopped beyond its lost_distance_m) waited until no progress failed the goal."""
+    planner.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 2.05, 0.0)))
+    planner.step(0.1, {"plan": 1})
+    planner.send("ground_truth", ros.pose_stamped(0.2, "map", Pose2D(1.5, 2.45, 0.0)))  # 0.4 m off: keeps it
+    planner.send("costmap", _costmap(0.2, _free()))
+    planner.step(0.3)
+    assert len(planner.received["plan"]) == 1
+    planner.send("ground_truth", ros.pose_stamped(0.4, "map", Pose2D(1.5, 3.15, 0.0)))  # 1.1 m off
+    planner.send("costmap", _costmap(0.4, _free()))
+    planner.step(0.5, {"plan": 2})
+    assert ros.path_points(planner.received["plan"][-1])[0] == pytest.approx((1.55, 3.15), abs=RES)
+
+
+def test_the_planner_notices_the_robot_cycling_and_makes_unknown_space_dearer(peer: Peer) -> None:
+    """Issue 30: a route through unknown space inside a thick wall keeps looking shortest; when the robot is back
+    where it was after driving a loop, with no shorter route, the planner raises the goal's unknown cost, says
+    so, and plans afresh (here: over the wall's known end)."""
+    h = Harness(
+        PlannerService, peer, ("goal_status", "plan"), pose_source="ground_truth",
+        cycle_distance_m=3.0, cycle_unknown_factor=10.0,
+    )  # fmt: skip
+    wall = _free()
+    wall[0:35, 15:25] = 100
+    wall[10:20, 15:25] = -1  # a stretch of the wall's inside nobody has seen: looks like a way through
+    h.send("costmap", _costmap(0.0, wall))
+    h.send("ground_truth", ros.pose_stamped(0.0, "map", Pose2D(0.55, 1.55, 0.0)))
+    h.send("goal", ros.pose_stamped(0.0, "map", Pose2D(3.45, 1.55, 0.0)))
+    h.step(0.1, {"plan": 1})
+    first = _plan_cells(h)
+    assert (wall[first[:, 0], first[:, 1]] < 0).any()  # through the unknown stretch
+    t = 0.2
+    for x, y in [(0.55, 1.55), (1.2, 1.55), (1.2, 3.0), (0.55, 3.0)]:  # a 4.2 m loop back to the start
+        h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(x, y, 0.0)))
+        h.step(t)
+        t += 0.1
+    assert len(h.received["plan"]) == 1 and h.service.goal.cycles == 0  # nowhere twice yet
+    h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(0.6, 1.6, 0.0)))
+    h.step(t, {"plan": 2})
+    assert h.service.goal.cycles == 1 and h.service.goal.unknown_factor == 10.0
+    assert any(s.error_text.startswith("cycling: back at (0.6, 1.6)") for s in h.received["goal_status"])
+    second = _plan_cells(h)
+    assert not (wall[second[:, 0], second[:, 1]] < 0).any() and second[:, 0].max() >= 35  # over the wall's end
 
 
 def test_the_planner_carries_its_route_over_to_a_grown_costmap(planner: Harness) -> None:
@@ -589,7 +668,7 @@ def test_slam_waits_for_initialpose_then_publishes_pose_map_and_tf(peer: Peer) -
     odometry in the map frame, the map, map→odom on tf."""
     from mjnav.services.slam import SlamService
 
-    h = Harness(SlamService, peer, ("pose", "map", "tf"))
+    h = Harness(SlamService, peer, ("pose", "map", "tf", "localization_health"))
     start = Pose2D(1.0, 0.5, 0.3)
     h.send("odom", ros.odometry(0.0, Pose2D(0.0, 0.0, 0.0), 0.0, 0.0))
     h.send("scan", _ring_scan(0.0, start, 4.0))
@@ -616,6 +695,25 @@ def test_slam_waits_for_initialpose_then_publishes_pose_map_and_tf(peer: Peer) -
     grid_cells, frame = ros.grid_frame(h.received["map"][0])
     on_wall = frame.values_at(grid_cells, np.array([[3.98, 0.0], [0.0, 3.98], [-3.98, 0.0]]), outside=-1)
     assert np.all(on_wall >= 65)  # the ring wall is in the map, where it is
+    health = h.received["localization_health"]
+    assert wait_until(lambda: len(health) == 2, 10.0)  # one per scan used
+    assert health[-1].level == 0 and ros.diagnostic_values(health[-1])["returns"] == "360"
+    # Out into a hall whose walls are beyond the lidar's range: no returns. Degraded after 3 such scans, lost
+    # after 2 m on odometry alone, and the status says so; a scan of the ring again localises it.
+    hall = ros.laser_scan(
+        0.0, "laser", angle_min_rad=-math.pi, angle_increment_rad=2 * math.pi / 360, scan_time_s=0.1,
+        range_min_m=0.05, range_max_m=12.0, ranges_m=np.full(360, np.inf),
+    )  # fmt: skip
+    for i in range(1, 10):
+        t = 0.2 + 0.1 * i
+        h.send("odom", ros.odometry(t, Pose2D(0.3 + 0.25 * i, 0.0, 0.0), 0.0, 0.0))
+        hall.header.stamp = ros.time_msg(t)
+        h.send("scan", hall)
+        h.step(t, {"localization_health": 2 + i})
+    # (A ring pins no heading: its second scan's match was already degenerate, the first of the scans in a row.)
+    assert [m.level for m in health[1:]] == [0, 0, 1, 1, 1, 1, 1, 2, 2, 2]
+    assert health[-1].message.startswith("0 lidar returns, fewer than 30")
+    assert h.service.starved().startswith("scans it can localise with: lost (0 lidar returns")
 
 
 @pytest.mark.e2e
