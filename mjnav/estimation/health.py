@@ -4,8 +4,9 @@ A scan is *good* when it has enough returns to match (``min_returns``), was matc
 share of its points with a correspondence, :class:`~mjnav.estimation.slam.PoseEstimate` ``score``) reaches
 ``min_score``. While scans are not good the pose follows the odometry alone: after ``degraded_scans`` of them in
 a row the localisation is ``DEGRADED``; once the odometry alone has carried the robot ``lost_distance_m`` (or
-turned it ``lost_angle_rad``) since the last good scan, it is ``LOST`` — wheel odometry drifts by a few per cent
-of the distance, and a pose that far off puts the robot on the wrong side of a wall. A *degenerate* match (a
+turned it ``lost_angle_rad``) since the last good scan, it is ``LOST`` — wheel odometry drifts by a per cent or
+two of the distance, and 10 m of it can put the robot on the wrong side of a thin wall (the defaults: 10 m, a
+full turn; the gyro-aided heading drifts little). A *degenerate* match (a
 long corridor pins the pose across it, not along it; a round room pins no heading: the odometry carries the
 rest) is not good either, but makes the localisation ``DEGRADED`` at most. The first good scan makes it ``OK``
 again. The levels are those of ROS's ``diagnostic_msgs/DiagnosticStatus`` (OK, WARN, ERROR).
@@ -43,8 +44,8 @@ class HealthConfig:
     min_returns: int = 30
     min_score: float = 0.5
     degraded_scans: int = 3
-    lost_distance_m: float = 2.0
-    lost_angle_rad: float = math.pi / 2
+    lost_distance_m: float = 10.0
+    lost_angle_rad: float = 2.0 * math.pi
 
     def __post_init__(self) -> None:
         if not self.min_returns >= 3:

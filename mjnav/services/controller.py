@@ -197,7 +197,7 @@ class ControllerService(Service[ControllerConfig]):
         self.feedback_cls = msg_class(_FEEDBACK)
         self.finished: set[int] = set()  # goal ids that ended (a late status must not revive them)
         self.stopped_reason = ""
-        self.slowed = ""  # the localisation problem the robot is slowed for ("" = not slowed)
+        self.slowed = False  # slowed for a degraded localisation (logged when it starts)
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
 
@@ -405,11 +405,11 @@ class ControllerService(Service[ControllerConfig]):
             if abs(v) > cap:  # slower on the same arc
                 v, w = math.copysign(cap, v), w * cap / abs(v)
             note = "slowed: localisation degraded"
-            if self.slowed != health.message.split(";")[0]:
-                self.slowed = health.message.split(";")[0]
+            if not self.slowed:
+                self.slowed = True
                 self.log.info("localisation degraded: slowed to %.2f m/s (%s)", cap, health.message)
         else:
-            self.slowed = ""
+            self.slowed = False
         self._drive(*self._checked(now, pose, v, w), note)
 
     def _drive(self, v: float, w: float, note: str = "") -> None:

@@ -153,8 +153,8 @@ class SlamService(Service[SlamServiceConfig]):
             return f"odometry on {self.bus.key('odom')}"
         if self.now - self.last_scan_used > STARVED_AFTER_S:
             return f"scans on {self.scan.key} (none used for {STARVED_AFTER_S:g} s)"
-        if self.health.report.level is Health.LOST:
-            return f"scans it can localise with: lost ({self.health.report.reason})"
+        if self.health.report.level is Health.LOST:  # no numbers: the runner logs each change of this text
+            return f"scans it can localise with (lost: the reason is on {self.health_pub.key})"
         return ""
 
     def _lidar_pose(self, frame: str) -> tuple[float, float, float] | None:

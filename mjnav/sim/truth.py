@@ -190,17 +190,30 @@ def true_grid(
     return static_occupancy(sim.model, sim.data, frame), frame
 
 
+#: :func:`shortest_length_m` looks for the path first within this many times the start-goal distance around them.
+DETOUR_FACTOR = 1.0
+#: ... and at least this far (metres).
+MIN_BORDER_M = 10.0
+#: Most cells :func:`shortest_length_m` rasterises: a bigger world gets coarser cells (a 1 km x 1 km world at
+#: 5 cm was 400 M cells, and the demo's summary ran the machine out of memory).
+MAX_EVALUATION_CELLS = 25_000_000
+
+
 def shortest_length_m(
     world: str | Path, start_xy: tuple[float, float], goal_xy: tuple[float, float], *, resolution_m: float = 0.05
 ) -> float:
     """Near-shortest collision-free path length for the robot of ``world`` on its true (static) map, metres.
 
-    The grid covers the world's static obstacles, the start and the goal with a 1 m border; see
+    The grid first covers the start and the goal with a border of :data:`DETOUR_FACTOR` times their distance
+    (at least :data:`MIN_BORDER_M`), clipped to the world's static obstacles with a 1 m border; when no path lies within it, the
+    whole world. It has ``resolution_m`` cells or, where that would take more than :data:`MAX_EVALUATION_CELLS`
+    (a whole world over about 250 m x 250 m), as many as that; see
     :func:`mjnav.planning.reference.shortest_path_length_m` for the method.
 
     Raises:
         mjnav.planning.PlanningError: start or goal blocked, or no path.
     """
+    from mjnav.planning import NoPathFound
     from mjnav.planning.reference import shortest_path_length_m
     from mjnav.sim.simulator import Simulator
     from mjnav.sim.worlds import world_info
@@ -213,11 +226,25 @@ def shortest_length_m(
     if info.bounds_m is not None:
         xs += [info.bounds_m[0], info.bounds_m[2]]
         ys += [info.bounds_m[1], info.bounds_m[3]]
-    x0, y0 = min(xs) - 1.0, min(ys) - 1.0
-    shape = (math.ceil((max(ys) + 1.0 - y0) / resolution_m), math.ceil((max(xs) + 1.0 - x0) / resolution_m))
-    frame = GridFrame(resolution_m, (x0, y0), shape)
-    obstacles = static_occupancy(sim.model, sim.data, frame)
-    return shortest_path_length_m(obstacles, frame, start_xy, goal_xy, sim.robot_radius_m)
+    world_box = (min(xs) - 1.0, min(ys) - 1.0, max(xs) + 1.0, max(ys) + 1.0)
+    border = max(MIN_BORDER_M, DETOUR_FACTOR * math.dist(start_xy, goal_xy))
+    near = (
+        max(world_box[0], min(start_xy[0], goal_xy[0]) - border),
+        max(world_box[1], min(start_xy[1], goal_xy[1]) - border),
+        min(world_box[2], max(start_xy[0], goal_xy[0]) + border),
+        min(world_box[3], max(start_xy[1], goal_xy[1]) + border),
+    )
+    for box in (near, world_box):
+        width, height = box[2] - box[0], box[3] - box[1]
+        res = max(resolution_m, math.sqrt(width * height / MAX_EVALUATION_CELLS))
+        frame = GridFrame(res, (box[0], box[1]), (math.ceil(height / res), math.ceil(width / res)))
+        obstacles = static_occupancy(sim.model, sim.data, frame)
+        try:
+            return shortest_path_length_m(obstacles, frame, start_xy, goal_xy, sim.robot_radius_m)
+        except NoPathFound:
+            if box == world_box:
+                raise
+    raise AssertionError("unreachable")
 
 
 def map_accuracy(

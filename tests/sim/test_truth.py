@@ -67,6 +67,25 @@ def test_shortest_length_is_at_least_the_straight_line() -> None:
         shortest_length_m("rooms", (-3.5, -3.5), (0.0, 0.0))
 
 
+def test_shortest_length_scales_its_cells_to_a_budget_and_looks_near_the_start_and_goal_first(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 30: on a 1 km x 1 km world the summary rasterised 400 M cells and ran the machine out of memory.
+    The path is looked for near the start and goal first (the whole world when none lies there), on at most
+    MAX_EVALUATION_CELLS cells."""
+    import mjnav.sim.truth as truth
+
+    fine = shortest_length_m("rooms", (-3.5, -3.5), (3.8, 2.2))
+    monkeypatch.setattr(truth, "MAX_EVALUATION_CELLS", 4_000)  # ~15 cm cells on the rooms world
+    coarse = shortest_length_m("rooms", (-3.5, -3.5), (3.8, 2.2))
+    assert coarse == pytest.approx(fine, rel=0.05)
+    # A window of 0.5 m around the two still holds the route (on cells placed from its own corner).
+    monkeypatch.setattr(truth, "MAX_EVALUATION_CELLS", 25_000_000)
+    monkeypatch.setattr(truth, "DETOUR_FACTOR", 0.0)
+    monkeypatch.setattr(truth, "MIN_BORDER_M", 0.5)
+    assert shortest_length_m("rooms", (-3.5, -3.5), (3.8, 2.2)) == pytest.approx(fine, rel=0.01)
+
+
 def test_footprint_clearance_is_the_distance_from_the_robot_disc_to_the_walls() -> None:
     from scipy.ndimage import distance_transform_edt
 
