@@ -205,9 +205,9 @@ def shortest_length_m(
     """Near-shortest collision-free path length for the robot of ``world`` on its true (static) map, metres.
 
     The grid first covers the start and the goal with a border of :data:`DETOUR_FACTOR` times their distance
-    (at least :data:`MIN_BORDER_M`), clipped to the world's static obstacles with a 1 m border; when no path lies within it, the
-    whole world. It has ``resolution_m`` cells or, where that would take more than :data:`MAX_EVALUATION_CELLS`
-    (a whole world over about 250 m x 250 m), as many as that; see
+    (at least :data:`MIN_BORDER_M`), clipped to the world's static obstacles with a 1 m border; when no path lies
+    within it, the whole world. It has ``resolution_m`` cells or, where that would take more than
+    :data:`MAX_EVALUATION_CELLS` (a whole world over about 250 m x 250 m), as many as that; see
     :func:`mjnav.planning.reference.shortest_path_length_m` for the method.
 
     Raises:
