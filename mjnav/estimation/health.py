@@ -6,10 +6,11 @@ share of its points with a correspondence, :class:`~mjnav.estimation.slam.PoseEs
 a row the localisation is ``DEGRADED``; once the odometry alone has carried the robot ``lost_distance_m`` (or
 turned it ``lost_angle_rad``) since the last good scan, it is ``LOST`` — wheel odometry drifts by a per cent or
 two of the distance, and 10 m of it can put the robot on the wrong side of a thin wall (the defaults: 10 m, a
-full turn; the gyro-aided heading drifts little). A *degenerate* match (a
-long corridor pins the pose across it, not along it; a round room pins no heading: the odometry carries the
-rest) is not good either, but makes the localisation ``DEGRADED`` at most. The first good scan makes it ``OK``
-again. The levels are those of ROS's ``diagnostic_msgs/DiagnosticStatus`` (OK, WARN, ERROR).
+full turn; the gyro-aided heading drifts little). The first good scan makes it ``OK`` again. A *degenerate*
+match (a long corridor pins the pose across it, not along it) is a good scan here: the odometry carries the
+pose along the corridor, and slowing down there only adds scans, each a little noise along it (the slam
+service reports degeneracy beside the level). The levels are those of ROS's
+``diagnostic_msgs/DiagnosticStatus`` (OK, WARN, ERROR).
 """
 
 from __future__ import annotations
@@ -90,7 +91,6 @@ class HealthMonitor:
         self._distance = 0.0
         self._angle = 0.0
         self._odom: tuple[float, float, float] | None = None
-        self._only_degenerate = True  # every scan since the last good one was merely degenerate
         self.report = HealthReport(Health.OK, "", 0, 1.0, 0, 0.0, 0.0)
 
     def update(
@@ -99,11 +99,9 @@ class HealthMonitor:
         returns: int,
         score: float,
         matched: bool,
-        degenerate: bool = False,
     ) -> HealthReport:
-        """Account for one scan: the odometry pose (x, y, θ) at its time, its valid returns, the match's quality,
-        whether it was matched and whether the match was degenerate. Returns the health after it (also kept in
-        :attr:`report`)."""
+        """Account for one scan: the odometry pose (x, y, θ) at its time, its valid returns, the match's quality
+        and whether it was matched. Returns the health after it (also kept in :attr:`report`)."""
         cfg = self.config
         if self._odom is not None:
             self._distance += math.hypot(odom_xyt[0] - self._odom[0], odom_xyt[1] - self._odom[1])
@@ -116,18 +114,13 @@ class HealthMonitor:
             problem = "the scan did not match the map"
         elif score < cfg.min_score:
             problem = f"match quality {score:.2f}, below {cfg.min_score:g}"
-        if not problem and degenerate:
-            problem = "the scan pins the pose only partly (a corridor, a round room): odometry carries the rest"
-        else:
-            self._only_degenerate = self._only_degenerate and not problem
         if not problem:
-            self._bad, self._distance, self._angle, self._only_degenerate = 0, 0.0, 0.0, True
+            self._bad, self._distance, self._angle = 0, 0.0, 0.0
             self.report = HealthReport(Health.OK, "", returns, score, 0, 0.0, 0.0)
             return self.report
         self._bad += 1
         level = Health.OK
-        lost = self._distance >= cfg.lost_distance_m or self._angle >= cfg.lost_angle_rad
-        if lost and not self._only_degenerate:
+        if self._distance >= cfg.lost_distance_m or self._angle >= cfg.lost_angle_rad:
             level = Health.LOST
         elif self._bad >= cfg.degraded_scans:
             level = Health.DEGRADED

@@ -186,7 +186,7 @@ TOPICS: dict[str, Topic] = {
             "slam",
             "10 Hz (each scan)",
             "How well SLAM localises: level OK, WARN (degraded: on odometry) or ERROR (lost), why, and values "
-            "(returns, match_score, bad_scans, unmatched_m); the controller slows, then stops, on it",
+            "(returns, match_score, bad_scans, unmatched_m, degenerate); the controller slows, then stops, on it",
         ),
         Topic(
             "initialpose",

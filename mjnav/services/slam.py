@@ -15,7 +15,7 @@ Where the lidar sits on the robot comes from the robot description the sim latch
 each scan is placed at the frame its header names.
 
 Each scan used updates the localisation's health (:mod:`mjnav.estimation.health`: enough returns, matched, match
-quality; a corridor's degenerate match), published on ``localization_health`` (``diagnostic_msgs/DiagnosticStatus``:
+quality), published on ``localization_health`` (``diagnostic_msgs/DiagnosticStatus``:
 OK, WARN = degraded, on odometry, ERROR = lost) and logged when it changes; while lost, the status says so. The
 controller slows on a degraded localisation and stops on a lost one.
 
@@ -317,7 +317,7 @@ class SlamService(Service[SlamServiceConfig]):
     def _report_health(self, stamp: float, odom_xyt: tuple[float, float, float], returns: int, est: Any) -> None:
         """Update the localisation's health with a scan, publish it, log a change of level."""
         before = self.health.report.level
-        report = self.health.update(odom_xyt, returns, est.score, est.matched, est.degenerate)
+        report = self.health.update(odom_xyt, returns, est.score, est.matched)
         if report.level != before:
             if report.level > before:
                 self.log.warning("localisation %s: %s", report.level.name.lower(), report.reason)
@@ -328,6 +328,7 @@ class SlamService(Service[SlamServiceConfig]):
             "match_score": f"{report.score:.3f}",
             "bad_scans": str(report.bad_scans),
             "unmatched_m": f"{report.unmatched_m:.3f}",
+            "degenerate": str(int(est.degenerate)),  # a corridor: the odometry carries the pose along it
             "stamp": f"{stamp:.6f}",
         }
         self.health_pub.put(ros.diagnostic_status(int(report.level), "slam", report.reason or "localised", values))
