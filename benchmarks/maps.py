@@ -3,7 +3,8 @@
 Each run is the command a new user types: ``mjnav demo --world MAP --seed S --headless --json --rtf max`` (SLAM's
 pose, an unknown map, the start and goal drawn from the seed: a goal 2 to 12 m away in the start's free region). The
 maps: the Moving AI benchmark maps in ``../shared/refdata/movingai`` (Sturtevant 2012: game maps, city streets,
-mazes, random obstacles; 0.5 m per cell by default, so a 512 x 512 map is a 256 m x 256 m world) and ``wall``, a
+mazes, random obstacles; 0.5 m per cell, so a 512 x 512 map is a 256 m x 256 m world, except
+:data:`RESOLUTION_M`) and ``wall``, a
 40 m x 24 m room split by a 2 m thick wall with a single opening at its far end, start and goal on either side of it
 (issue 30's livelock: written here as a ROS map and turned into a world with ``mjnav world from-map``; its start
 and goal are fixed, so its seeds differ in their noise only).
@@ -42,6 +43,9 @@ WALL_RESOLUTION_M = 0.05
 WALL_SIZE_M = (40.0, 24.0)
 WALL_START = (20.0, 6.0, math.pi / 2)
 WALL_GOAL = (20.0, 18.0)
+#: Metres per Moving AI cell where the default 0.5 m does not fit the robot: maze512-1-0's corridors are one cell
+#: wide, and the demo refuses a map with no free cell 0.5 m from the walls.
+RESOLUTION_M = {"maze512-1-0": 1.0}
 
 
 def refdata() -> Path:
@@ -81,10 +85,12 @@ def write_wall_map(folder: Path) -> Path:
     return scene
 
 
-def run_demo(world: str, seed: int, timeout_s: float) -> dict[str, Any]:
+def run_demo(world: str, seed: int, timeout_s: float, resolution_m: float | None = None) -> dict[str, Any]:
     """One ``mjnav demo`` run: its summary plus the wall times this benchmark measures."""
     cmd = [sys.executable, "-m", "mjnav", "demo", "--world", world, "--seed", str(seed), "--headless", "--json",
            "--rtf", "max", "--timeout", str(timeout_s)]  # fmt: skip
+    if resolution_m is not None:
+        cmd += ["--map-resolution", str(resolution_m)]
     t0 = time.monotonic()
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     assert proc.stdout is not None
@@ -148,7 +154,7 @@ def main() -> int:
         for name in chosen:
             world = str(write_wall_map(Path(tmp) / "wall")) if name == "wall" else str(maps[name])
             for seed in seeds:
-                r = row(name, seed, run_demo(world, seed, args.timeout))
+                r = row(name, seed, run_demo(world, seed, args.timeout, RESOLUTION_M.get(name)))
                 rows.append(r)
                 print(
                     f"{r['map']:>16} seed {r['seed']}: {r['result']:<12} collisions {r['collisions']}  "
