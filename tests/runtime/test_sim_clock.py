@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import pytest
 
-from mjnav.bus import Bus, BusConfig, wait_until
+from mjnav.bus import Bus, BusConfig, Publisher, wait_until
 from mjnav.msgs import ros
 from mjnav.runtime import Service
 from mjnav.runtime.runner import ServiceRunner
@@ -43,17 +44,31 @@ def _wait_steps(n: int) -> bool:
         return STEPPED.wait_for(lambda: len(STEPS) >= n, timeout=5.0)
 
 
-def test_steps_follow_sim_time_and_count_overruns(peer: Callable[..., Bus], router_endpoint: str) -> None:
+@contextmanager
+def _stepping(
+    service: type[Counting], peer: Callable[..., Bus], router_endpoint: str
+) -> Iterator[tuple[ServiceRunner, Publisher]]:
+    """``service`` run by a ServiceRunner in a thread, and a peer's clock publisher it has subscribed to; the
+    runner is stopped (and its thread gone) afterwards."""
     STEPS.clear()
     ACTIVATIONS.clear()
-    runner = ServiceRunner(Counting, CountingConfig(), BusConfig(connect=(router_endpoint,)), "robot0")
+    runner = ServiceRunner(service, CountingConfig(), BusConfig(connect=(router_endpoint,)), "robot0")
     thread = threading.Thread(target=runner.run)
     thread.start()
     try:
         sim = peer()
         clock = sim.publisher("clock")
         assert clock.wait_for_subscribers(5.0)
-        assert wait_until(lambda: sim.alive_services() == ["counting"], 5.0)
+        assert wait_until(lambda: sim.alive_services() == [service.name], 5.0)
+        yield runner, clock
+    finally:
+        runner.stop_event.set()
+        thread.join(10.0)
+    assert not thread.is_alive()
+
+
+def test_steps_follow_sim_time_and_count_overruns(peer: Callable[..., Bus], router_endpoint: str) -> None:
+    with _stepping(Counting, peer, router_endpoint) as (runner, clock):
         ticks = [round(0.1 * i, 10) for i in range(11)]
         for i, t in enumerate(ticks):
             clock.put(ros.clock(t))
@@ -72,10 +87,6 @@ def test_steps_follow_sim_time_and_count_overruns(peer: Callable[..., Bus], rout
         assert STEPS[-1] == 0.0 and ACTIVATIONS == [0, 13]
         clock.put(ros.clock(0.1))
         assert _wait_steps(15) and STEPS[-1] == 0.1
-    finally:
-        runner.stop_event.set()
-        thread.join(10.0)
-    assert not thread.is_alive()
 
 
 JUMP_AT = 0.3
@@ -97,24 +108,11 @@ class RestartedWhileStepping(Counting):
 
 
 def test_a_restart_that_arrives_while_a_step_runs_is_not_missed(peer: Callable[..., Bus], router_endpoint: str) -> None:
-    STEPS.clear()
-    ACTIVATIONS.clear()
-    runner = ServiceRunner(RestartedWhileStepping, CountingConfig(), BusConfig(connect=(router_endpoint,)), "robot0")
-    thread = threading.Thread(target=runner.run)
-    thread.start()
-    try:
-        sim = peer()
-        clock = sim.publisher("clock")
+    with _stepping(RestartedWhileStepping, peer, router_endpoint) as (runner, clock):
         RESTART.update(clock=clock, runner=runner)
-        assert clock.wait_for_subscribers(5.0)
-        assert wait_until(lambda: sim.alive_services() == ["restarted"], 5.0)
         for i, t in enumerate((0.0, 0.1, 0.2, JUMP_AT)):
             clock.put(ros.clock(t))
             assert _wait_steps(i + 1), f"no step at sim time {t}"
         # The step at 0.3 sent clock 0: the service is re-activated and steps at 0 on the new timeline.
         assert _wait_steps(5), "the loop missed the restart that came while it stepped"
         assert STEPS == [0.0, 0.1, 0.2, JUMP_AT, 0.0] and ACTIVATIONS == [0, 4]
-    finally:
-        runner.stop_event.set()
-        thread.join(10.0)
-    assert not thread.is_alive()
