@@ -116,13 +116,24 @@ def _find_robot_root(spec: mujoco.MjSpec, path: Path) -> mujoco.MjsBody:
 
 
 def _floor_names(spec: mujoco.MjSpec) -> list[str]:
-    """Names of the world-body plane geoms, naming unnamed ones so sensors can refer to them."""
+    """Names of the world-body plane geoms, naming unnamed ones so sensors can refer to them.
+
+    The planes are found in a first compilation (0.15 s on a map world of 33,000 boxes): going through the spec's
+    geoms costs more than linear time (``spec.geoms`` 1.8 s there). Only an unnamed plane is looked up in the spec,
+    by its place among the world body's geoms.
+    """
+    model = spec.compile()
+    first = int(model.body_geomadr[0])
+    planes = np.flatnonzero((model.geom_bodyid == 0) & (model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE))
     names: list[str] = []
-    for i, g in enumerate(spec.geoms):
-        if g.type == mujoco.mjtGeom.mjGEOM_PLANE and g.parent == spec.worldbody:
-            if not g.name:
-                g.name = f"mjnav_floor_{i}"
-            names.append(g.name)
+    for g in planes.tolist():
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+        if not name:
+            geom = spec.worldbody.first_geom()
+            for _ in range(g - first):
+                geom = spec.worldbody.next_geom(geom)
+            name = geom.name = f"mjnav_floor_{g}"
+        names.append(name)
     return names
 
 
@@ -224,16 +235,14 @@ def static_bounds(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[float, fl
 
     ``data`` must hold the kinematics (after ``mj_forward`` or ``mj_kinematics``).
     """
-    lo = np.full(2, np.inf)
-    hi = np.full(2, -np.inf)
-    for g in range(model.ngeom):
-        if model.geom_bodyid[g] != 0 or model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE:
-            continue
-        rot = data.geom_xmat[g].reshape(3, 3)
-        centre = data.geom_xpos[g] + rot @ model.geom_aabb[g, :3]
-        half = np.abs(rot) @ model.geom_aabb[g, 3:]
-        lo = np.minimum(lo, centre[:2] - half[:2])
-        hi = np.maximum(hi, centre[:2] + half[:2])
+    g = np.flatnonzero((model.geom_bodyid == 0) & (model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE))
+    if g.size == 0:
+        return None
+    rot = data.geom_xmat[g].reshape(-1, 3, 3)
+    centre = data.geom_xpos[g] + np.einsum("gij,gj->gi", rot, model.geom_aabb[g, :3])
+    half = np.einsum("gij,gj->gi", np.abs(rot), model.geom_aabb[g, 3:])
+    lo = (centre[:, :2] - half[:, :2]).min(axis=0)
+    hi = (centre[:, :2] + half[:, :2]).max(axis=0)
     if not np.all(np.isfinite(lo)):
         return None
     return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
@@ -268,7 +277,10 @@ def load_world(world: str | Path, *, timestep_s: float | None = None) -> LoadedW
         raise ModelLoadError(f"{path}: {exc}") from exc
     root = _find_robot_root(spec, path)
     prefix = root.name[: -len(_BASE)]
-    floors = _floor_names(spec)
+    try:
+        floors = _floor_names(spec)
+    except Exception as exc:  # the first compilation: MuJoCo's ValueError with its message
+        raise ModelLoadError(f"{path}: {exc}") from exc
     sens, obj = mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj
     spec.add_sensor(
         name=_CONTACT_ALL, type=sens, objtype=obj.mjOBJ_XBODY, objname=root.name, intprm=list(_CONTACT_FOUND)

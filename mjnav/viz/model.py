@@ -131,10 +131,14 @@ def load_visual_model(world: str | Path) -> VisualModel:
     body_pose = {b: homogeneous(data.xmat[b].reshape(3, 3), data.xpos[b]) for b in moving_bodies(model, robot)}
     moving: dict[int, list[VisualGeom]] = {b: [] for b in body_pose}
     robot_list: list[VisualGeom] = []
+    colours: dict[tuple[tuple[float, ...], int], tuple[float, float, float, float]] = {}
     for g in range(model.ngeom):
         if int(model.geom_group[g]) > 2:
             continue
-        rgba = _rgba(model, g)
+        key = (tuple(model.geom_rgba[g].tolist()), int(model.geom_matid[g]))
+        rgba = colours.get(key)
+        if rgba is None:  # a map world has thousands of boxes and one colour
+            rgba = colours[key] = _rgba(model, g)
         if rgba[3] <= 0.0:
             continue
         shape = _SHAPES.get(int(model.geom_type[g]))

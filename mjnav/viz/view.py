@@ -2,7 +2,8 @@
 
 Layout (all under ``/meshcat/mjnav``, frame ``map`` = the MuJoCo world frame)::
 
-    world/<geom>            static MJCF geoms (floor, walls, furniture)
+    world/<geom>            static MJCF geoms (floor, walls, furniture); in a world of more than
+                            MERGE_ABOVE_GEOMS of them, the boxes as world/boxes_<k>: one mesh per colour
     moving/<geom>           other bodies at their initial pose, translucent (their motion is not on the bus)
     robot                   transform = robot pose; robot/body/<geom> the robot's MJCF geoms
     robot/laser             transform = lidar pose in base_link; robot/laser/scan the latest scan points
@@ -56,6 +57,11 @@ TRAIL_SPACING_M = 0.1
 #: green reached, red failed, grey canceled.
 GOAL_COLOURS = {0: 0xF2C200, 1: 0xF2C200, 2: 0xF2C200, 3: 0x00C2C7, 4: 0x16C60C, 5: 0xE02020, 6: 0x8A8A8A}
 
+#: A world with more static geoms than this draws its boxes merged, one triangle mesh per colour: a map turned into
+#: a world has thousands (random512-40-5: 33,370), and one meshcat object each took 4.5 s to build and as long again
+#: to send, while the viewer's tree of them is of no use to anyone.
+MERGE_ABOVE_GEOMS = 256
+
 _ROT_X_90 = np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1.0]])  # y axis → z axis
 
 
@@ -74,6 +80,46 @@ class _Plane(mg.Geometry):
 
     def lower(self, object_data: Any) -> dict[str, Any]:
         return {"uuid": self.uuid, "type": "PlaneGeometry", "width": self.width, "height": self.height}
+
+
+def _box_faces() -> tuple[NDArray[np.float64], NDArray[np.uint32]]:
+    """A unit box's corners as (24, 3) signs, four per face (so each face shades flat), and its (12, 3) triangles,
+    counter-clockwise seen from outside."""
+    corners: list[list[float]] = []
+    triangles: list[tuple[int, int, int]] = []
+    for axis in range(3):
+        u, v = (axis + 1) % 3, (axis + 2) % 3  # e_u x e_v = e_axis
+        for sign in (1.0, -1.0):
+            if sign < 0:
+                u, v = v, u  # reversed order: the face looks along -e_axis
+            base = len(corners)
+            for a, b in ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)):
+                c = [0.0, 0.0, 0.0]
+                c[axis], c[u], c[v] = sign, a, b
+                corners.append(c)
+            triangles += [(base, base + 1, base + 2), (base, base + 2, base + 3)]
+    return np.asarray(corners), np.asarray(triangles, dtype=np.uint32)
+
+
+_BOX_CORNERS, _BOX_TRIANGLES = _box_faces()
+
+
+def merged_boxes(geoms: list[VisualGeom]) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
+    """One triangle mesh of many box geoms, in their common parent frame.
+
+    Args:
+        geoms: box geoms (``shape == "box"``), posed in one frame.
+
+    Returns:
+        vertices: (24 B, 3) float32, metres, four per face; faces: (12 B, 3) uint32, counter-clockwise seen from
+        outside.
+    """
+    half = np.asarray([g.size for g in geoms], dtype=np.float64)  # (B, 3) half sizes
+    poses = np.asarray([g.pose for g in geoms], dtype=np.float64)  # (B, 4, 4)
+    local = _BOX_CORNERS[None, :, :] * half[:, None, :]  # (B, 24, 3)
+    world = np.einsum("bij,bkj->bki", poses[:, :3, :3], local) + poses[:, None, :3, 3]
+    faces = _BOX_TRIANGLES[None, :, :] + (24 * np.arange(len(geoms), dtype=np.uint32))[:, None, None]
+    return world.reshape(-1, 3).astype(np.float32), faces.reshape(-1, 3)
 
 
 def _safe(name: str) -> str:
@@ -178,7 +224,18 @@ class NavView:
         s.delete(f"{ROOT}/world")
         s.delete(f"{ROOT}/moving")
         s.delete(f"{ROOT}/robot/body")
-        for geom in model.world_geoms:
+        separate = model.world_geoms
+        if len(separate) > MERGE_ABOVE_GEOMS:
+            boxes: dict[tuple[float, float, float, float], list[VisualGeom]] = {}
+            for geom in separate:
+                if geom.shape == "box":
+                    boxes.setdefault(geom.rgba, []).append(geom)
+            for k, (rgba, group) in enumerate(sorted(boxes.items())):
+                vertices, faces = merged_boxes(group)
+                material = mg.MeshLambertMaterial(color=rgb_hex(rgba[:3]), opacity=rgba[3], transparent=rgba[3] < 1)
+                s.set_object(f"{ROOT}/world/boxes_{k}", mg.Mesh(mg.TriangularMeshGeometry(vertices, faces), material))
+            separate = tuple(g for g in separate if g.shape != "box")
+        for geom in separate:
             self._draw_geom(f"{ROOT}/world/{_safe(geom.name)}", geom, 1.0)
         for body in model.moving_bodies:
             path = f"{ROOT}/moving/{_safe(body.name)}"

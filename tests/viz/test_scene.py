@@ -218,3 +218,53 @@ def test_static_html_shows_the_driven_trail(tmp_path: Path) -> None:
     assert len(xyz) == pytest.approx(math.dist((-3.0, -3.0), (-1.0, -2.0)) / TRAIL_SPACING_M, abs=2)
     # Every trail point lies on the driven line, in order.
     assert np.allclose(xyz[:, 1] + 3.0, 0.5 * (xyz[:, 0] + 3.0), atol=1e-5) and np.all(np.diff(xyz[:, 0]) > 0)
+
+
+def test_merged_boxes_have_the_boxes_corners_and_faces_that_look_outwards() -> None:
+    from mjnav.viz.model import VisualGeom
+    from mjnav.viz.view import merged_boxes
+
+    yaw = 0.6
+    pose = np.eye(4)
+    pose[:3, :3] = [[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]]
+    pose[:3, 3] = [3.0, -1.0, 0.25]
+    boxes = [
+        VisualGeom("a", "box", (0.5, 0.2, 0.25), (1, 0, 0, 1), pose),
+        VisualGeom("b", "box", (1.0, 1.0, 1.0), (1, 0, 0, 1), np.eye(4)),
+    ]
+    vertices, faces = merged_boxes(boxes)
+    assert vertices.shape == (48, 3) and faces.shape == (24, 3) and faces.max() == 47
+    corners = np.unique(np.round(vertices[:24].astype(np.float64), 4), axis=0)
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+    expected = np.unique(np.round((signs * [0.5, 0.2, 0.25]) @ pose[:3, :3].T + pose[:3, 3], 4), axis=0)
+    np.testing.assert_allclose(corners, expected, atol=2e-4)  # the first box's 8 corners, each on its 3 faces
+    for k, f in enumerate(faces):
+        a, b, c = vertices[f].astype(np.float64)
+        normal = np.cross(b - a, c - a)
+        centre = pose[:3, 3] if k < 12 else np.zeros(3)
+        assert np.dot(normal, (a + b + c) / 3 - centre) > 0  # counter-clockwise seen from outside
+    assert {int(i) for i in faces[:12].ravel()} == set(range(24))  # every face of the first box uses its own corners
+
+
+def test_a_world_of_many_boxes_draws_one_mesh_per_colour(tmp_path: Path) -> None:
+    from mjnav.sim.worldgen import write_scene_from_map
+    from mjnav.viz.view import MERGE_ABOVE_GEOMS
+
+    rows = ["".join("@" if r % 2 and c % 2 else "." for c in range(41)) for r in range(41)]  # 400 lone cells
+    src = tmp_path / "dots.map"
+    src.write_text("type octile\nheight 41\nwidth 41\nmap\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    write_scene_from_map(src, tmp_path / "dots.xml", resolution_m=1.0, start=Pose2D(0.5, 0.5, 0.0))
+    model = load_visual_model(tmp_path / "dots.xml")
+    boxes = [g for g in model.world_geoms if g.shape == "box"]
+    assert len(model.world_geoms) > MERGE_ABOVE_GEOMS and len(boxes) >= 400
+    scene = Scene()
+    NavView(scene).draw_model(model)
+    world = [p for p in scene.paths() if p.startswith(f"{ROOT}/world/")]
+    merged = [p for p in world if p.startswith(f"{ROOT}/world/boxes_")]
+    assert len(merged) == len({g.rgba for g in boxes})  # one mesh per colour of box
+    assert not any(scene.has_object(f"{ROOT}/world/{g.name}") for g in boxes)
+    planes = [g.name for g in model.world_geoms if g.shape != "box"]
+    assert planes and all(scene.has_object(f"{ROOT}/world/{name}") for name in planes)  # the floor stays itself
+    small = Scene()
+    NavView(small).draw_model(load_visual_model("rooms"))
+    assert not any("boxes_" in p for p in small.paths())  # a world of few geoms keeps them by name
