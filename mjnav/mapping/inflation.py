@@ -159,7 +159,30 @@ def inflate_mask(obstacles: ArrayLike, resolution_m: float, radius_m: float) -> 
     obs = _bool_grid(obstacles, "obstacles")
     res = _resolution(resolution_m)
     radius = _nonneg(radius_m, "radius_m")
-    return _edt(obs, res) <= radius
+    return _dilate_disc(obs, res, radius)
+
+
+def _dilate_disc(obstacles: NDArray[np.bool_], resolution_m: float, radius_m: float) -> NDArray[np.bool_]:
+    """:func:`inflate_mask` as a dilation by the disc of cell offsets within ``radius_m``, one row of the disc at a
+    time: each distinct half-width is one running maximum along the rows, OR-ed in at the offsets of the disc's rows
+    that have it. Three grids of memory, where the distance transform took 41 bytes a cell (723 MB on 17.6 M)."""
+    h, w = obstacles.shape
+    reach = int(radius_m / resolution_m) + 1
+    offsets = np.arange(-reach, reach + 1)
+    inside = np.hypot(offsets[:, None] * resolution_m, offsets[None, :] * resolution_m) <= radius_m
+    half = {int(dy): int(np.abs(offsets[row]).max()) for dy, row in zip(offsets, inside, strict=True) if row.any()}
+    out = np.zeros((h, w), dtype=bool)
+    cells = obstacles.view(np.uint8)
+    for width in sorted(set(half.values())):
+        grown = ndimage.maximum_filter1d(cells, 2 * width + 1, axis=1, mode="constant", cval=0).view(bool)
+        for dy, hw in half.items():
+            if hw != width or abs(dy) >= h:
+                continue
+            if dy >= 0:  # a cell is blocked by an obstacle dy rows below it
+                out[: h - dy] |= grown[dy:]
+            else:
+                out[-dy:] |= grown[: h + dy]
+    return out
 
 
 def inflation_costmap(

@@ -203,3 +203,20 @@ def test_clearance_within_is_exact_up_to_the_bound(norm: str) -> None:
     assert np.isinf(near[79, 0]) and np.isfinite(full[79, 0])  # far cells were not transformed
     with pytest.raises(InvalidParameterError):
         clearance_m(obs, 0.05, within_m=-1.0)
+
+
+def test_inflate_mask_matches_the_definition_cell_by_cell_ties_included() -> None:
+    """The disc dilation against brute force: every cell within the radius of an obstacle cell's centre, for radii
+    that put cells exactly on the circle (5 cells, a 3-4-5 triangle; √2 and √5 cells) and for none."""
+    rng = np.random.default_rng(3)
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(1, 25, size=2))
+        obstacles = rng.random((h, w)) < float(rng.choice([0.0, 0.02, 0.2]))
+        res = float(rng.choice([0.05, 0.1, 0.03]))
+        radius = float(rng.choice([0.0, 0.19, 5 * res, math.sqrt(2) * res, math.sqrt(5) * res, 0.5]))
+        rows, cols = np.nonzero(obstacles)
+        r, c = np.mgrid[0:h, 0:w]
+        expected = np.zeros((h, w), dtype=bool)
+        for i, j in zip(rows, cols, strict=True):
+            expected |= np.hypot((r - i) * res, (c - j) * res) <= radius
+        np.testing.assert_array_equal(inflate_mask(obstacles, res, radius), expected)
