@@ -213,13 +213,15 @@ def true_grid(
     return static_occupancy(sim.model, sim.data, frame), frame
 
 
-#: :func:`shortest_length_m` looks for the path first within this many times the start-goal distance around them.
-DETOUR_FACTOR = 1.0
+#: :func:`shortest_length_m` looks for the path first within this many times the start-goal distance around them
+#: (enough for any path up to 1.5 times that distance; a longer one grows the window to what it needs).
+DETOUR_FACTOR = 0.25
 #: ... and at least this far (metres).
 MIN_BORDER_M = 10.0
-#: Most cells :func:`shortest_length_m` rasterises: a bigger world gets coarser cells (a 1 km x 1 km world at
-#: 5 cm was 400 M cells, and the demo's summary ran the machine out of memory).
-MAX_EVALUATION_CELLS = 25_000_000
+#: Most cells :func:`shortest_length_m` rasterises: a bigger window gets coarser cells (a 1 km x 1 km world at
+#: 5 cm was 400 M cells, and the demo's summary ran the machine out of memory; the search takes about 35 bytes a
+#: cell, so 25 M cells still took 1.3 GB beside the running stack).
+MAX_EVALUATION_CELLS = 10_000_000
 
 
 def shortest_length_m(
