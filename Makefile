@@ -17,6 +17,21 @@ SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri libosmesa6 libsuitesparse-dev
 # docker/compose.yaml), geographiclib-tools (CartConvert: fresh geodetic reference points). Without them those
 # tests skip and say why.
 TEST_PACKAGES := chromium docker-compose geographiclib-tools
+# apt_get (what every apt-get call here goes through) waits at most APT_LOCK_WAIT_S for a lock another apt or dpkg
+# process holds (unattended-upgrades, another make) and says so, instead of failing with "Could not get lock": each
+# try waits inside apt-get for the dpkg lock (-o DPkg::Lock::Timeout), and a try that still finds a lock held (also
+# the package lists' lock of apt-get update, which that option does not cover) is repeated every 5 s.
+APT_LOCK_WAIT_S ?= 300
+DEFINE_APT_GET = apt_get() { \
+    local deadline=$$((SECONDS + $(APT_LOCK_WAIT_S))) out lock said=; \
+    until out=$$(LC_ALL=C apt-get -o DPkg::Lock::Timeout=5 "$$@" 2>&1); do \
+      lock=$$(grep -m1 -E 'Could not get lock|Unable to acquire the dpkg' <<<"$$out") && [ $$SECONDS -lt $$deadline ] \
+        || { echo "$$out" >&2; return 1; }; \
+      [ -n "$$said" ] || echo "apt-get $$1: waiting up to $(APT_LOCK_WAIT_S) s for another apt process ($${lock:3})"; \
+      said=1; sleep 5; \
+    done; \
+    [ -z "$$out" ] || echo "$$out"; \
+  }
 DEMO_WORLD ?= rooms
 DEMO_RTF ?= 2
 PYTEST_ARGS ?=
@@ -51,7 +66,7 @@ $(STAMP): pyproject.toml
 	  $(PYTHON) -m venv $(VENV) 2>/dev/null || { \
 	    rm -rf $(VENV); \
 	    if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
-	      apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv && $(PYTHON) -m venv $(VENV); \
+	      $(DEFINE_APT_GET); apt_get update -qq && DEBIAN_FRONTEND=noninteractive apt_get install -y -qq python3-venv && $(PYTHON) -m venv $(VENV); \
 	    else echo "cannot create a virtual environment: install the Debian package python3-venv"; exit 1; fi; }; \
 	fi
 	$(BIN)/python -m pip install --quiet --upgrade pip
@@ -64,7 +79,7 @@ system-deps:
 	if [ -z "$$missing" ]; then exit 0; fi; \
 	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
 	  echo "installing Debian packages:$$missing"; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
+	  $(DEFINE_APT_GET); apt_get update -qq && DEBIAN_FRONTEND=noninteractive apt_get install -y -qq --no-install-recommends $$missing; \
 	else \
 	  echo "WARNING: offscreen rendering needs the Debian packages:$$missing"; \
 	  echo "         install them with: sudo apt-get install$$missing (rendering tests skip until then)"; \
@@ -76,7 +91,7 @@ test-deps:
 	if [ -z "$$missing" ]; then exit 0; fi; \
 	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
 	  echo "installing Debian packages for the tests:$$missing"; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
+	  $(DEFINE_APT_GET); apt_get update -qq && DEBIAN_FRONTEND=noninteractive apt_get install -y -qq --no-install-recommends $$missing; \
 	else \
 	  echo "NOTE: without$$missing the browser check and compose validation skip (sudo apt-get install$$missing)"; \
 	fi

@@ -27,10 +27,12 @@ import importlib
 import json
 import logging
 import os
+import re
 import select
 import shutil
 import signal
 import socket
+import stat
 import subprocess
 import sys
 import tempfile
@@ -100,6 +102,57 @@ def _die_with_parent(parent_pid: int) -> Callable[[], None]:
             os._exit(1)
 
     return preexec
+
+
+#: A run's state directory in the temp folder: ``mjnav-state-<launcher pid>-<its start time>-<random>``; the owner in
+#: the name lets a later launcher remove what one that died (``kill -9``) left behind (:func:`make_state_dir`).
+_STATE_DIR = re.compile(r"mjnav-state-(\d+)-(\d+)-")
+
+
+def _started(pid: int) -> int | None:
+    """When process ``pid`` started (clock ticks since boot, from Linux's /proc), None when no process has that pid
+    or it is a zombie (dead, not yet reaped)."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return None
+    fields = text[text.rindex(")") + 2 :].split()  # after the command name, which may hold spaces and brackets
+    return None if fields[0] == "Z" else int(fields[19])  # stat fields 3 (state) and 22 (starttime)
+
+
+def make_state_dir() -> str:
+    """A new state directory for this run in the temp folder (mode 0700), named after this process's pid and start
+    time; first removes the leftovers of launchers that are gone (:func:`remove_leftover_state_dirs`)."""
+    remove_leftover_state_dirs()
+    pid = os.getpid()
+    return tempfile.mkdtemp(prefix=f"mjnav-state-{pid}-{_started(pid) or 0}-")
+
+
+def remove_leftover_state_dirs() -> list[Path]:
+    """Remove this user's state directories in the temp folder whose launcher is gone — no process has its pid, or
+    the one that has it started at another time: a launcher killed with -9 cannot remove its own —; returns them.
+    Never one of a live process, nor one whose name does not say its owner; nothing at all without /proc (not
+    Linux), where a live owner cannot be told from a dead one."""
+    if not Path("/proc/self/stat").exists():
+        return []
+    removed = []
+    for path in sorted(Path(tempfile.gettempdir()).glob("mjnav-state-*")):
+        match = _STATE_DIR.match(path.name)
+        if match is None or _started(int(match[1])) == int(match[2]):
+            continue
+        try:
+            info = path.lstat()
+            if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid():
+                continue
+            shutil.rmtree(path)
+        except FileNotFoundError:  # another launcher starting at the same time removed it
+            continue
+        except OSError as exc:
+            log.warning("leftover state directory %s not removed: %s", path, exc)
+            continue
+        log.info("removed %s, the state directory of launcher %s, which is gone", path, match[1])
+        removed.append(path)
+    return removed
 
 
 class _Process(Protocol):
@@ -427,7 +480,7 @@ class Launcher:
         for service in self.specs:
             service.load_class()
         _prime_numba()
-        self.state_dir = tempfile.mkdtemp(prefix="mjnav-state-")
+        self.state_dir = make_state_dir()
         go_read, self._go_write = os.pipe()
         forked: list[tuple[_Child, _ForkedProcess]] = []
         for child in self.children:
@@ -672,7 +725,7 @@ class Launcher:
             self.router_ready.set()
         log.info("zenoh router on %s; namespace %s", self.endpoint, self.namespace)
         if self.state_dir is None:
-            self.state_dir = tempfile.mkdtemp(prefix="mjnav-state-")
+            self.state_dir = make_state_dir()
         deadline = None if self.duration_s is None else time.monotonic() + self.duration_s
         try:
             router.watch_alive(self._on_alive)

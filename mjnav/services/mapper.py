@@ -26,9 +26,9 @@ latches (:mod:`mjnav.runtime.robot`); nothing about the robot or the world is co
 
 from __future__ import annotations
 
+import io
 import json
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -42,6 +42,7 @@ from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
 from mjnav.robot import DescriptionError
 from mjnav.runtime import Service
+from mjnav.runtime.checkpoint import Checkpoint
 from mjnav.runtime.pose import PoseInput
 from mjnav.runtime.robot import RobotModel
 
@@ -227,49 +228,62 @@ class MapperService(Service[MapperConfig]):
 
     # ------------------------------------------------------------------------------------------- checkpoints
 
-    def _checkpoint_file(self) -> Path | None:
-        return None if self.state_dir is None else self.state_dir / "mapper-map.npz"
+    def _checkpoint_store(self) -> Checkpoint | None:
+        """The map's checkpoint in the run's state directory (None without one)."""
+        return None if self.state_dir is None else Checkpoint(self.state_dir / "mapper-map.ckpt", 1, self.log)
 
     def _checkpoint(self) -> None:
-        """Write the log-odds grid to the state directory (atomically: a crash mid-write keeps the last one)."""
-        path = self._checkpoint_file()
-        if path is None or self.grid is None:
+        """Write the log-odds grid to the state directory (:class:`Checkpoint`: atomic, checksummed, the previous
+        one kept)."""
+        store = self._checkpoint_store()
+        if store is None or self.grid is None:
             return
-        tmp = path.with_suffix(".tmp.npz")
         g = self.grid
-        np.savez(tmp, log_odds=g.log_odds, resolution_m=g.resolution_m, origin_m=np.asarray(g.origin_m))
-        os.replace(tmp, path)
+        buffer = io.BytesIO()
+        np.savez(buffer, log_odds=g.log_odds, resolution_m=g.resolution_m, origin_m=np.asarray(g.origin_m))
+        store.save(buffer.getvalue())
         self.checkpointed_scans = self.scans
 
     def _restore_checkpoint(self) -> None:
         """Resume from the run's checkpoint, if a previous mapper process of this run left one at this resolution
-        (a prior map's grid, if any, grows to hold it)."""
-        path = self._checkpoint_file()
-        if path is None or not path.exists():
+        (a prior map's grid, if any, grows to hold it). A bad checkpoint is logged, set aside and the previous one
+        used, or none (:meth:`Checkpoint.load`)."""
+        store = self._checkpoint_store()
+        if store is None:
             return
-        try:
-            with np.load(path) as data:
-                log_odds = np.asarray(data["log_odds"], dtype=np.float64)
-                resolution = float(data["resolution_m"])
-                origin = tuple(float(v) for v in np.asarray(data["origin_m"]).tolist())
-            if log_odds.ndim != 2 or len(origin) != 2:
-                raise ValueError(f"log_odds of shape {log_odds.shape}, origin {origin}")
-        except (OSError, ValueError, KeyError) as exc:
-            self.log.warning("map checkpoint %s unreadable (%s): starting from scratch", path, exc)
+        saved = store.load(self._decode_grid)
+        if saved is None:
             return
-        if resolution != self.config.resolution_m and self.grid is None:
+        if saved.resolution_m != self.config.resolution_m and self.grid is None:
             self.log.warning(
                 "map checkpoint %s has %g m cells, the mapper %g m: starting from scratch",
-                path, resolution, self.config.resolution_m,
+                store.path, saved.resolution_m, self.config.resolution_m,
             )  # fmt: skip
             return
-        h, w = log_odds.shape
-        saved = OccupancyGrid(w, h, resolution, (origin[0], origin[1]))
-        saved.log_odds[...] = log_odds
         self._set_grid(saved)
         self.seeded = True
-        known = int(np.count_nonzero(log_odds))
-        self.log.info("resumed the map from checkpoint %s (%d known cells)", path, known)
+        known = int(np.count_nonzero(saved.log_odds))
+        self.log.info("resumed the map from checkpoint %s (%d known cells)", store.path, known)
+
+    @staticmethod
+    def _decode_grid(payload: bytes) -> OccupancyGrid:
+        """The grid a checkpoint's payload holds (an ``.npz`` of ``log_odds``, ``resolution_m``, ``origin_m``).
+
+        Raises:
+            ValueError, KeyError, OSError: not such an ``.npz``.
+        """
+        with np.load(io.BytesIO(payload), allow_pickle=False) as data:
+            log_odds = np.asarray(data["log_odds"], dtype=np.float64)
+            resolution = float(data["resolution_m"])
+            origin = tuple(float(v) for v in np.asarray(data["origin_m"]).tolist())
+        if log_odds.ndim != 2 or 0 in log_odds.shape or len(origin) != 2 or not resolution > 0:
+            raise ValueError(f"log_odds of shape {log_odds.shape}, origin {origin}, {resolution} m cells")
+        if not np.isfinite(log_odds).all():
+            raise ValueError("log_odds not finite")
+        h, w = log_odds.shape
+        grid = OccupancyGrid(w, h, resolution, (origin[0], origin[1]))
+        grid.log_odds[...] = log_odds
+        return grid
 
     # ------------------------------------------------------------------------------------------------ scans
 

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import threading
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -51,6 +50,7 @@ from mjnav.planning import (
 )
 from mjnav.planning.costmap import INSCRIBED, clear_disc, planning_grid
 from mjnav.runtime import Service
+from mjnav.runtime.checkpoint import Checkpoint
 from mjnav.runtime.pose import PoseInput
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
@@ -496,42 +496,54 @@ class PlannerService(Service[PlannerConfig]):
 
     # ----------------------------------------------------------------------------------------- checkpoint
 
-    def _state_file(self) -> Any:
-        return None if self.state_dir is None else self.state_dir / "planner-goal.json"
+    def _goal_checkpoint(self) -> Checkpoint | None:
+        """The goal's checkpoint in the run's state directory (None without one)."""
+        return None if self.state_dir is None else Checkpoint(self.state_dir / "planner-goal.ckpt", 1, self.log)
 
     def _save(self) -> None:
-        """Checkpoint the next goal id and the active goal (atomically)."""
-        path = self._state_file()
-        if path is None:
+        """Checkpoint the next goal id and the active goal (:class:`Checkpoint`: atomic, checksummed, the previous
+        one kept)."""
+        store = self._goal_checkpoint()
+        if store is None:
             return
         with self._lock:
             state: dict[str, Any] = {"next_id": self.next_id, "goal": None}
             active = self._unstepped or (None if self.goal is None else (self.goal.goal_id, self.goal.msg))
             if active is not None:  # an accepted navigate request not yet stepped supersedes the active goal
                 state["goal"] = {"goal_id": active[0], "cdr": encode(active[1], _GOAL).hex()}
-            tmp = path.with_suffix(".tmp")
-            tmp.write_text(json.dumps(state), encoding="utf-8")
-            os.replace(tmp, path)
+            store.save(json.dumps(state).encode("utf-8"))
 
     def _restore(self) -> None:
-        """Resume from the checkpoint a previous planner process of this run left, if any."""
-        path = self._state_file()
-        if path is None or not path.exists():
+        """Resume from the checkpoint a previous planner process of this run left, if any (a bad one is logged, set
+        aside and the previous one used, or none: :meth:`Checkpoint.load`)."""
+        store = self._goal_checkpoint()
+        saved = None if store is None else store.load(self._decode_goal)
+        if saved is None:
             return
-        try:
-            state = json.loads(path.read_text(encoding="utf-8"))
-            self.next_id = int(state["next_id"])
-            saved = state["goal"]
-            if saved is not None:
-                msg = decode(bytes.fromhex(saved["cdr"]), _GOAL)
-                self.goal = _Goal(int(saved["goal_id"]), msg, ros.pose2d(msg.pose))
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            self.log.warning("goal checkpoint %s unreadable (%s): starting without a goal", path, exc)
-            return
+        self.next_id, self.goal = saved
         if self.goal is not None:
             self.log.info(
                 "resuming goal %d (%.2f, %.2f) after a restart", self.goal.goal_id, self.goal.pose.x, self.goal.pose.y
             )
+
+    @staticmethod
+    def _decode_goal(payload: bytes) -> tuple[int, _Goal | None]:
+        """(next goal id, the active goal or None) from a checkpoint's payload (JSON; the goal as CDR in hex).
+
+        Raises:
+            ValueError, KeyError, TypeError: not such a payload.
+        """
+        state = json.loads(payload.decode("utf-8"))
+        next_id, saved = int(state["next_id"]), state["goal"]
+        if next_id < 1:
+            raise ValueError(f"next goal id {next_id}")
+        if saved is None:
+            return next_id, None
+        msg = decode(bytes.fromhex(saved["cdr"]), _GOAL)
+        goal_id = int(saved["goal_id"])
+        if not 0 < goal_id < next_id:
+            raise ValueError(f"goal id {goal_id}, next goal id {next_id}")
+        return next_id, _Goal(goal_id, msg, ros.pose2d(msg.pose))
 
     @staticmethod
     def _remaining(cells: Any, start: tuple[int, int]) -> Any:

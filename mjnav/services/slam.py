@@ -26,14 +26,16 @@ restarted slam service resumes the same map and pose graph. The checkpoint grows
 
 from __future__ import annotations
 
+import bisect
 import json
+import logging
 import math
-import os
 import pickle
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 import numpy as np
 
@@ -45,6 +47,7 @@ from mjnav.motion.gyrodometry import GyroOdometry
 from mjnav.msgs import msg_class, ros
 from mjnav.robot import DescriptionError
 from mjnav.runtime import Service
+from mjnav.runtime.checkpoint import Checkpoint, CheckpointError, CorruptCheckpoint, LogScan, RecordLog, set_aside
 from mjnav.runtime.robot import RobotModel
 
 #: Sim seconds without a scan used after which the status says SLAM lacks scans.
@@ -381,94 +384,151 @@ class SlamService(Service[SlamServiceConfig]):
         if self.state_dir is None or self.slam is None:
             return
         if self.checkpoint is None:
-            self.checkpoint = SlamCheckpoint(self.state_dir)
+            self.checkpoint = SlamCheckpoint(self.state_dir, self.log)
         self.checkpoint.save(self.slam, {"map_to_odom": self.map_to_odom, "scans": self.scans})
 
     def _restore(self) -> None:
-        """Resume from this run's checkpoint (written by this service's previous process), if any."""
+        """Resume from this run's checkpoint (written by this service's previous process), if any; a bad one is
+        logged and set aside, and the previous one used or none (:meth:`SlamCheckpoint.load`)."""
         if self.state_dir is None or self.config.mode != "mapping":
             return
-        checkpoint = SlamCheckpoint(self.state_dir)
-        try:
-            loaded = checkpoint.load()  # our own files in our own run's state directory
-            if loaded is None:
-                return
-            slam, extra = loaded
-            self.map_to_odom, self.scans = extra["map_to_odom"], int(extra["scans"])
-        except (OSError, pickle.UnpicklingError, KeyError, AttributeError, EOFError, TypeError, SlamError) as exc:
-            self.log.warning("SLAM checkpoint in %s unreadable (%s): waiting for initialpose", self.state_dir, exc)
+        checkpoint = SlamCheckpoint(self.state_dir, self.log)
+        loaded = checkpoint.load(_resumed_extra)
+        if loaded is None:
             return
-        self.slam, self.checkpoint = slam, checkpoint
-        self.log.info("resumed SLAM from checkpoint in %s (%d keyframes)", self.state_dir, slam.num_keyframes)
+        self.slam, (self.map_to_odom, self.scans) = loaded
+        self.checkpoint = checkpoint
+        self.log.info("resumed SLAM from checkpoint in %s (%d keyframes)", self.state_dir, self.slam.num_keyframes)
+
+
+def _resumed_extra(extra: dict[str, Any]) -> tuple[np.ndarray, int]:
+    """(map → odom (3,), scans used) from what :meth:`SlamService._checkpoint` saved beside the SLAM.
+
+    Raises:
+        KeyError, ValueError, TypeError: not what it saves.
+    """
+    map_to_odom = np.asarray(extra["map_to_odom"], dtype=float)
+    if map_to_odom.shape != (3,) or not np.isfinite(map_to_odom).all():
+        raise ValueError(f"map_to_odom {map_to_odom!r}")
+    return map_to_odom, int(extra["scans"])
+
+
+T = TypeVar("T")
 
 
 class SlamCheckpoint:
     """A :class:`GraphSlam` checkpointed in a directory by what is new since the last save.
 
-    ``slam.log`` gets each item of the SLAM's append-only lists (keyframe scans, finished submaps:
-    :attr:`GraphSlam.APPEND_ONLY`) once, as pickled ``(list, index, item)`` records; ``slam.pickle`` holds the rest
-    (pose graph, occupancy grid, trajectory, the caller's ``extra``) and the length of the log it relies on, and is
-    replaced atomically after the log was synced. A crash in between leaves records past that length: the next load
-    ignores them and the next save overwrites them. A save costs the new keyframes plus the rest (after 288
-    keyframes on the test ring: 0.2 instead of 5.7 MB).
+    ``slam.log`` (a :class:`~mjnav.runtime.checkpoint.RecordLog`) gets each item of the SLAM's append-only lists
+    (keyframe scans, finished submaps: :attr:`GraphSlam.APPEND_ONLY`) once, as a checksummed record of the pickled
+    ``(list, index, item)``; ``slam-state.ckpt`` (a :class:`~mjnav.runtime.checkpoint.Checkpoint`, the previous one
+    kept as ``.prev``) holds the rest (pose graph, occupancy grid, trajectory, the caller's ``extra``), the log's id
+    and the length of the log it relies on, and is replaced after the log was synced. A crash in between leaves
+    records past that length: the next load ignores them and the next save overwrites them. A save costs the new
+    keyframes plus the rest (after 288 keyframes on the test ring: 0.2 instead of 5.7 MB).
+
+    A damaged record fails its checksum. The state saved last needs every record, so it is refused and the previous
+    state tried, which needs the log only up to where it was saved: the newest full checkpoint whose records all
+    verify is resumed (the good prefix alone is not a state: the pose graph refers to every keyframe), else none
+    and SLAM starts afresh. Refused states are set aside; the log goes with them (a copy while the resumed state
+    uses it, since the next save drops its records past that state), so nothing is lost.
     """
 
-    def __init__(self, directory: Path) -> None:
-        self.log_path = directory / "slam.log"
-        self.state_path = directory / "slam.pickle"
+    #: Version of what the state's and the records' pickles hold.
+    SCHEMA = 1
+
+    def __init__(self, directory: Path, log: logging.Logger) -> None:
+        self.records = RecordLog(directory / "slam.log", self.SCHEMA)
+        self.state = Checkpoint(directory / "slam-state.ckpt", self.SCHEMA, log)
+        self.log = log
         self._slam: GraphSlam | None = None  # the SLAM the log belongs to
         self._counts: dict[str, int] = {}  # its items of each list in the log
+        self._log_id = 0
         self._log_bytes = 0
+
+    @property
+    def log_path(self) -> Path:
+        return self.records.path
+
+    @property
+    def state_path(self) -> Path:
+        return self.state.path
 
     def save(self, slam: GraphSlam, extra: dict[str, Any]) -> None:
         """Append ``slam``'s new list items to the log, then replace the state file (``extra`` goes with it)."""
         state, lists = slam.split_state()
         counts = {name: len(items) for name, items in lists.items()}
         if slam is not self._slam:  # another mapping: the log starts afresh
-            self._slam, self._counts, self._log_bytes = slam, dict.fromkeys(counts, 0), 0
-        with os.fdopen(os.open(self.log_path, os.O_RDWR | os.O_CREAT, 0o644), "r+b") as f:
-            f.truncate(self._log_bytes)  # records of a save that did not finish
-            f.seek(self._log_bytes)
-            for name, items in lists.items():
-                for i in range(self._counts[name], len(items)):
-                    pickle.dump((name, i, items[i]), f, protocol=pickle.HIGHEST_PROTOCOL)
-            f.flush()
-            os.fsync(f.fileno())
-            log_bytes = f.tell()
-        tmp = self.state_path.with_suffix(".tmp")
-        with tmp.open("wb") as f:
-            top = {"state": state, "counts": counts, "log_bytes": log_bytes, "extra": extra}
-            pickle.dump(top, f, protocol=pickle.HIGHEST_PROTOCOL)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, self.state_path)
+            self._log_id = self.records.start()
+            self._slam, self._counts, self._log_bytes = slam, dict.fromkeys(counts, 0), RecordLog.HEADER_BYTES
+        new = (
+            pickle.dumps((name, i, items[i]), protocol=pickle.HIGHEST_PROTOCOL)
+            for name, items in lists.items()
+            for i in range(self._counts[name], len(items))
+        )
+        log_bytes = self.records.append(new, self._log_bytes)
+        top = {"state": state, "counts": counts, "log_id": self._log_id, "log_bytes": log_bytes, "extra": extra}
+        self.state.save(pickle.dumps(top, protocol=pickle.HIGHEST_PROTOCOL))
         self._counts, self._log_bytes = counts, log_bytes
 
-    def load(self) -> tuple[GraphSlam, dict[str, Any]] | None:
-        """The saved SLAM and ``extra``, or None without a checkpoint; the next :meth:`save` appends to it.
+    def load(self, extra: Callable[[dict[str, Any]], T]) -> tuple[GraphSlam, T] | None:
+        """The saved SLAM and ``extra(saved extra)``, or None (no checkpoint, or none left that verifies); the next
+        :meth:`save` appends to it. Never raises for bad files: they are logged by name and set aside.
+
+        Args:
+            extra: what the caller makes of the ``extra`` it saved; any exception refuses the state.
+        """
+        try:
+            scan: LogScan | CheckpointError = self.records.scan()
+        except CheckpointError as exc:
+            scan = exc
+        loaded = self.state.load(lambda payload: self._decoded(payload, scan, extra))
+        if self.state.refused and self.log_path.exists():
+            try:
+                moved = set_aside(self.log_path, copy=loaded is not None)
+            except OSError as exc:
+                self.log.error("%s not set aside with the refused SLAM state: %s", self.log_path, exc)
+            else:
+                self.log.warning("%s set aside as %s with the refused SLAM state", self.log_path, moved.name)
+        if loaded is None:
+            return None
+        slam, resumed, counts, log_id, log_bytes = loaded
+        self._slam, self._counts, self._log_id, self._log_bytes = slam, counts, log_id, log_bytes
+        return slam, resumed
+
+    def _decoded(
+        self, payload: bytes, scan: LogScan | CheckpointError, extra: Callable[[dict[str, Any]], T]
+    ) -> tuple[GraphSlam, T, dict[str, int], int, int]:
+        """A state file's payload and the log's records made a SLAM: (SLAM, extra, counts, log id, log bytes).
 
         Raises:
-            SlamError: the log does not hold what the state file relies on.
-            OSError, pickle.UnpicklingError, EOFError: unreadable files.
+            CheckpointError: the log does not hold what the state relies on (and anything a damaged payload makes
+                unpickling raise).
         """
-        if not self.state_path.exists():
-            return None
-        with self.state_path.open("rb") as f:
-            top = pickle.load(f)
-        counts, log_bytes = dict(top["counts"]), int(top["log_bytes"])
+        if isinstance(scan, CheckpointError):
+            raise scan
+        top = pickle.loads(payload)
+        counts = {str(name): int(n) for name, n in dict(top["counts"]).items()}
+        log_id, log_bytes = int(top["log_id"]), int(top["log_bytes"])
+        if log_id != scan.log_id:
+            raise CorruptCheckpoint(self.log_path, f"another mapping's log (id {scan.log_id:#x}, needed {log_id:#x})")
+        if log_bytes > scan.good_end:
+            end = scan.error or f"the file ends at byte {scan.good_end}"
+            raise CorruptCheckpoint(self.log_path, f"{end}; the state needs it up to byte {log_bytes}")
+        used = bisect.bisect_right(scan.ends, log_bytes)
+        if (scan.ends[used - 1] if used else RecordLog.HEADER_BYTES) != log_bytes:
+            raise CorruptCheckpoint(self.log_path, f"no record ends at byte {log_bytes}, where the state needs one")
         lists: dict[str, list[Any]] = {name: [] for name in GraphSlam.APPEND_ONLY}
-        with self.log_path.open("rb") as f:
-            while f.tell() < log_bytes:
-                name, i, item = pickle.load(f)
-                if name not in lists or i != len(lists[name]):
-                    raise SlamError(f"{self.log_path}: record {name}[{i}] out of order")
-                lists[name].append(item)
+        for record in scan.payloads[:used]:
+            name, i, item = pickle.loads(record)
+            if name not in lists or i != len(lists[name]):
+                raise CorruptCheckpoint(self.log_path, f"record {name}[{i}] out of order")
+            lists[name].append(item)
         found = {name: len(items) for name, items in lists.items()}
         if found != counts:
-            raise SlamError(f"{self.log_path} holds {found} items, the state needs {counts}")
+            raise CorruptCheckpoint(self.log_path, f"holds {found} items, the state needs {counts}")
         slam = GraphSlam.from_split_state(top["state"], lists)
-        self._slam, self._counts, self._log_bytes = slam, counts, log_bytes
-        return slam, dict(top["extra"])
+        return slam, extra(dict(top["extra"])), counts, log_id, log_bytes
 
 
 def _between(a: Pose2D, b: Pose2D) -> Any:
