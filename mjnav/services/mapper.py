@@ -230,7 +230,7 @@ class MapperService(Service[MapperConfig]):
 
     def _checkpoint_store(self) -> Checkpoint | None:
         """The map's checkpoint in the run's state directory (None without one)."""
-        return None if self.state_dir is None else Checkpoint(self.state_dir / "mapper-map.ckpt", 1, self.log)
+        return None if self.state_dir is None else Checkpoint(self.state_dir / "mapper-map.npz", 1, self.log)
 
     def _checkpoint(self) -> None:
         """Write the log-odds grid to the state directory (:class:`Checkpoint`: atomic, checksummed, the previous

@@ -498,7 +498,7 @@ class PlannerService(Service[PlannerConfig]):
 
     def _goal_checkpoint(self) -> Checkpoint | None:
         """The goal's checkpoint in the run's state directory (None without one)."""
-        return None if self.state_dir is None else Checkpoint(self.state_dir / "planner-goal.ckpt", 1, self.log)
+        return None if self.state_dir is None else Checkpoint(self.state_dir / "planner-goal.json", 1, self.log)
 
     def _save(self) -> None:
         """Checkpoint the next goal id and the active goal (:class:`Checkpoint`: atomic, checksummed, the previous

@@ -421,7 +421,7 @@ class SlamCheckpoint:
 
     ``slam.log`` (a :class:`~mjnav.runtime.checkpoint.RecordLog`) gets each item of the SLAM's append-only lists
     (keyframe scans, finished submaps: :attr:`GraphSlam.APPEND_ONLY`) once, as a checksummed record of the pickled
-    ``(list, index, item)``; ``slam-state.ckpt`` (a :class:`~mjnav.runtime.checkpoint.Checkpoint`, the previous one
+    ``(list, index, item)``; ``slam.pickle`` (a :class:`~mjnav.runtime.checkpoint.Checkpoint`, the previous one
     kept as ``.prev``) holds the rest (pose graph, occupancy grid, trajectory, the caller's ``extra``), the log's id
     and the length of the log it relies on, and is replaced after the log was synced. A crash in between leaves
     records past that length: the next load ignores them and the next save overwrites them. A save costs the new
@@ -439,7 +439,7 @@ class SlamCheckpoint:
 
     def __init__(self, directory: Path, log: logging.Logger) -> None:
         self.records = RecordLog(directory / "slam.log", self.SCHEMA)
-        self.state = Checkpoint(directory / "slam-state.ckpt", self.SCHEMA, log)
+        self.state = Checkpoint(directory / "slam.pickle", self.SCHEMA, log)
         self.log = log
         self._slam: GraphSlam | None = None  # the SLAM the log belongs to
         self._counts: dict[str, int] = {}  # its items of each list in the log

@@ -113,7 +113,7 @@ def _mapper(peer: Peer) -> Kind:
 
     return Kind(
         svc, save, reset, svc._restore_checkpoint, fingerprint,
-        newest={"mapper-map.ckpt": None}, previous={"mapper-map.ckpt.prev": None}, targets=("mapper-map.ckpt",),
+        newest={"mapper-map.npz": None}, previous={"mapper-map.npz.prev": None}, targets=("mapper-map.npz",),
     )  # fmt: skip
 
 
@@ -138,13 +138,13 @@ def _planner(peer: Peer) -> Kind:
 
     return Kind(
         svc, save, reset, svc._restore, fingerprint,
-        newest={"planner-goal.ckpt": None}, previous={"planner-goal.ckpt.prev": None}, targets=("planner-goal.ckpt",),
+        newest={"planner-goal.json": None}, previous={"planner-goal.json.prev": None}, targets=("planner-goal.json",),
     )  # fmt: skip
 
 
 def _slam(peer: Peer) -> Kind:
     svc: Any = Harness(SlamService, peer, (), robot=None).service
-    previous: dict[str, int | None] = {"slam-state.ckpt.prev": None}
+    previous: dict[str, int | None] = {"slam.pickle.prev": None}
 
     def save(directory: Path) -> tuple[Any, Any]:
         svc.state_dir, prints = directory, []
@@ -173,7 +173,7 @@ def _slam(peer: Peer) -> Kind:
 
     return Kind(
         svc, save, reset, svc._restore, fingerprint,
-        newest={"slam-state.ckpt": None, "slam.log": None}, previous=previous, targets=("slam-state.ckpt", "slam.log"),
+        newest={"slam.pickle": None, "slam.log": None}, previous=previous, targets=("slam.pickle", "slam.log"),
     )  # fmt: skip
 
 

@@ -55,7 +55,7 @@ def test_the_next_launcher_removes_the_state_directory_of_one_killed_with_sigkil
 ) -> None:
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     with _owner(tmp_path) as (killed, dead_dir), _owner(tmp_path) as (_live, live_dir):
-        (dead_dir / "mapper-map.ckpt").write_bytes(b"checkpoint")
+        (dead_dir / "mapper-map.npz").write_bytes(b"checkpoint")
         assert dead_dir.parent == live_dir.parent == tmp_path and dead_dir.name.startswith(f"mjnav-state-{killed.pid}-")
         assert oct(dead_dir.stat().st_mode & 0o777) == "0o700"
         killed.send_signal(signal.SIGKILL)

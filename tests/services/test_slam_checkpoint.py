@@ -118,7 +118,7 @@ def test_a_log_that_lacks_what_the_state_needs_is_refused(tmp_path: Path, caplog
     with caplog.at_level(logging.WARNING):
         assert SlamCheckpoint(tmp_path, LOG).load(dict) is None
     assert f"checkpoint {saver.state_path} is bad" in caplog.text and "the state needs it up to byte" in caplog.text
-    assert not saver.state_path.exists() and (tmp_path / "slam-state.ckpt.bad-1").exists()
+    assert not saver.state_path.exists() and (tmp_path / "slam.pickle.bad-1").exists()
     assert not saver.log_path.exists() and (tmp_path / "slam.log.bad-1").exists()  # set aside with it
     assert SlamCheckpoint(tmp_path / "nowhere", LOG).load(dict) is None
 
