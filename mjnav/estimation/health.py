@@ -11,6 +11,10 @@ match (a long corridor pins the pose across it, not along it) is a good scan her
 pose along the corridor, and slowing down there only adds scans, each a little noise along it (the slam
 service reports degeneracy beside the level). The levels are those of ROS's
 ``diagnostic_msgs/DiagnosticStatus`` (OK, WARN, ERROR).
+
+A report also says whether the newest scan was bad for want of returns (:attr:`HealthReport.starved`): lost in
+open space, with nothing in the lidar's range, is another matter than lost among returns that do not match the
+map — nothing is near to collide with, and standing still brings no return that could localise the robot again.
 """
 
 from __future__ import annotations
@@ -71,6 +75,7 @@ class HealthReport:
         bad_scans: scans in a row that were not good.
         unmatched_m: distance driven on odometry alone since the last good scan, metres.
         unmatched_rad: angle turned meanwhile, radians.
+        starved: the newest scan was not good for want of returns (fewer than ``min_returns``).
     """
 
     level: Health
@@ -80,6 +85,7 @@ class HealthReport:
     bad_scans: int
     unmatched_m: float
     unmatched_rad: float
+    starved: bool = False
 
 
 class HealthMonitor:
@@ -128,7 +134,8 @@ class HealthMonitor:
             f"{problem}; {self._bad} scan(s) in a row, {self._distance:.2f} m and "
             f"{math.degrees(self._angle):.0f} deg on odometry alone"
         )
+        starved = returns < cfg.min_returns
         self.report = HealthReport(
-            level, reason, returns, score if matched else 0.0, self._bad, self._distance, self._angle
+            level, reason, returns, score if matched else 0.0, self._bad, self._distance, self._angle, starved
         )
         return self.report

@@ -22,7 +22,10 @@ the sim latches (:mod:`mjnav.runtime.robot`).
 
 On SLAM's pose (``pose_source = "slam"``) the controller also follows SLAM's ``localization_health``: while the
 localisation is degraded (running on odometry) it drives at most ``degraded_speed_scale`` of its speed, and
-while it is lost it stops, saying why in its feedback and log, until SLAM localises again.
+while it is lost among returns that do not match the map it stops, saying why in its feedback and log, until SLAM
+localises again. Lost in open space — SLAM's newest scan had too few returns (``starved`` in the status' values) —
+it drives on at the degraded speed on odometry instead: nothing is within the lidar's range to collide with (the
+collision check still watches the scan), and standing still would never bring a return to localise on.
 """
 
 from __future__ import annotations
@@ -45,6 +48,8 @@ from mjnav.runtime.robot import RobotModel
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
 _FEEDBACK = "mjnav_msgs/msg/ControllerFeedback"
+#: Feedback while SLAM is lost for want of returns and the robot drives on on odometry (see the module docstring).
+_OPEN_SPACE = "slowed: localisation lost in open space, driving on odometry"
 #: Sim seconds without a scan, while a goal is active, after which the status says the controller lacks scans.
 STARVED_AFTER_S = 5.0
 #: Map value (occupancy probability, %) from which a cell counts as a wall for the collision check.
@@ -197,7 +202,7 @@ class ControllerService(Service[ControllerConfig]):
         self.feedback_cls = msg_class(_FEEDBACK)
         self.finished: set[int] = set()  # goal ids that ended (a late status must not revive them)
         self.stopped_reason = ""
-        self.slowed = False  # slowed for a degraded localisation (logged when it starts)
+        self.slowed = ""  # why the speed is capped for the localisation's sake (logged when it changes)
         # Load the compiled kernels now, not when the first path arrives.
         self.pursuit.compute((0.0, 0.0, 0.0), 0.0, np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
 
@@ -372,7 +377,8 @@ class ControllerService(Service[ControllerConfig]):
             return
         pose = latest[1]
         health = None if self.health_sub is None else self.health_sub.latest()
-        if health is not None and health.level >= health.ERROR:
+        starved = health is not None and ros.diagnostic_values(health).get("starved") == "1"
+        if health is not None and health.level >= health.ERROR and not starved:
             self._stop("localisation lost: waiting for SLAM to localise again", health.message)
             return
         if self.at_goal_xy:
@@ -400,16 +406,16 @@ class ControllerService(Service[ControllerConfig]):
             self._stop("off the path: waiting for a new plan", f"{abs(status.cross_track_m):.2f} m off")
             return
         note = ""
-        if health is not None and health.level == health.WARN:
+        if health is not None and health.level >= health.WARN:  # degraded, or lost in open space
             cap = self.config.degraded_speed_scale * self.config.max_speed_mps
             if abs(v) > cap:  # slower on the same arc
                 v, w = math.copysign(cap, v), w * cap / abs(v)
-            note = "slowed: localisation degraded"
-            if not self.slowed:
-                self.slowed = True
-                self.log.info("localisation degraded: slowed to %.2f m/s (%s)", cap, health.message)
+            note = "slowed: localisation degraded" if health.level == health.WARN else _OPEN_SPACE
+            if self.slowed != note:
+                self.slowed = note
+                self.log.info("%s: %.2f m/s at most (%s)", note, cap, health.message)
         else:
-            self.slowed = False
+            self.slowed = ""
         self._drive(*self._checked(now, pose, v, w), note)
 
     def _drive(self, v: float, w: float, note: str = "") -> None:

@@ -332,6 +332,7 @@ class SlamService(Service[SlamServiceConfig]):
             "bad_scans": str(report.bad_scans),
             "unmatched_m": f"{report.unmatched_m:.3f}",
             "degenerate": str(int(est.degenerate)),  # a corridor: the odometry carries the pose along it
+            "starved": str(int(report.starved)),  # too few returns: lost in open space, nothing near
             "stamp": f"{stamp:.6f}",
         }
         self.health_pub.put(ros.diagnostic_status(int(report.level), "slam", report.reason or "localised", values))

@@ -28,8 +28,10 @@ def test_good_scans_are_ok_and_bad_ones_degrade_then_lose_the_localisation() -> 
         x += 0.05
         m.update((x, 0.0, 0.0), 12, 0.0, False)
     assert m.report.unmatched_m == pytest.approx(2.0, abs=0.051) and "m and" in m.report.reason
+    assert m.report.starved  # lost for want of returns: open space
+    assert not m.update((x + 0.05, 0.0, 0.0), 300, 0.0, False).starved  # plenty of returns that do not match
     # One good scan: localised again, every count reset.
-    report = m.update((x + 0.05, 0.0, 0.0), 300, 0.8, True)
+    report = m.update((x + 0.1, 0.0, 0.0), 300, 0.8, True)
     assert (report.level, report.reason, report.bad_scans, report.unmatched_m) == (Health.OK, "", 0, 0.0)
 
 
