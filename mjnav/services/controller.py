@@ -20,6 +20,11 @@ the planner turns into ``ERROR_TIMEOUT``. A controller that (re)starts late gets
 smoother's newest path from their latched topics. The robot's footprint radius comes from the robot description
 the sim latches (:mod:`mjnav.runtime.robot`).
 
+The path and the goal's status come only when they change: their freshness is their producers' (smoother,
+planner, and SLAM on SLAM's pose), whose step reports the controller watches (:mod:`mjnav.runtime.upstream`).
+One whose due step is more than ``upstream_grace_s`` of sim time late — dead, hung, left out of the lockstep —
+stops the robot, saying which, until it reports again.
+
 On SLAM's pose (``pose_source = "slam"``) the controller also follows SLAM's ``localization_health``: while the
 localisation is degraded (running on odometry) it drives at most ``degraded_speed_scale`` of its speed, and
 while it is lost among returns that do not match the map it stops, saying why in its feedback and log, until SLAM
@@ -42,9 +47,11 @@ from mjnav.control.collision import CollisionCheckParams, TrackedScan, TrackingP
 from mjnav.geometry import Pose2D, wrap_angle
 from mjnav.mapping.frame import GridFrame
 from mjnav.msgs import msg_class, ros
+from mjnav.msgs.topics import OPERATOR, OWN, PUBLISH_RIGHTS
 from mjnav.runtime import Service
 from mjnav.runtime.pose import PoseInput
 from mjnav.runtime.robot import RobotModel
+from mjnav.runtime.upstream import UpstreamWatch
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
 _FEEDBACK = "mjnav_msgs/msg/ControllerFeedback"
@@ -88,6 +95,9 @@ class ControllerConfig:
         collision_moving_horizon_s: how far ahead moving scan points are checked.
         moving_speed_mps: scan points moving faster than this between two scans count as moving.
         scan_timeout_s: stop when the newest scan is older than this (sim s): the collision check needs one.
+        upstream_grace_s: stop when a service the path, the goal's status or SLAM's pose come from (planner,
+            smoother, slam) has missed its due step by this much (sim s; :mod:`mjnav.runtime.upstream`): it died,
+            hung or was left out of the lockstep, and what it sent last may no longer hold.
         progress_timeout_s, progress_radius_m: report no progress (the planner fails the goal with
             ``ERROR_TIMEOUT``) when the robot stayed within ``progress_radius_m`` for ``progress_timeout_s`` sim
             seconds while the goal was active.
@@ -119,6 +129,7 @@ class ControllerConfig:
     collision_moving_horizon_s: float = 4.0
     moving_speed_mps: float = 0.25
     scan_timeout_s: float = 0.5
+    upstream_grace_s: float = 0.15
     progress_timeout_s: float = 20.0
     progress_radius_m: float = 0.25
     degraded_speed_scale: float = 0.5
@@ -131,6 +142,7 @@ class ControllerConfig:
             "lost_distance_m",
             "front_sector_rad",
             "scan_timeout_s",
+            "upstream_grace_s",
             "progress_timeout_s",
             "progress_radius_m",
             "yaw_goal_tolerance_rad",
@@ -196,6 +208,9 @@ class ControllerService(Service[ControllerConfig]):
         self.status_sub = self.bus.subscribe("goal_status")
         slam = self.config.pose_source == "slam"
         self.health_sub = self.bus.subscribe("localization_health") if slam else None
+        inputs = ("path", "goal_status", *(("localization_health",) if slam else ()))  # SLAM's tf comes with it
+        producers = {who for topic in inputs for who in PUBLISH_RIGHTS[topic] if who not in (OPERATOR, OWN)}
+        self.upstream = UpstreamWatch(self.bus, producers, self.config.upstream_grace_s)
         self.cmd_pub = self.bus.publisher("cmd_vel")
         self.feedback_pub = self.bus.publisher("controller_feedback")
         self.status_cls = msg_class(_STATUS)
@@ -365,6 +380,13 @@ class ControllerService(Service[ControllerConfig]):
         path = self._current_path()
         if self.goal is None:
             self._stop("no active goal")
+            return
+        stale = self.upstream.stale(now)
+        if stale:
+            self.progress = None  # standing for want of an input is no lack of progress
+            names = ", ".join(name for name, _ in stale)
+            due = ", ".join(f"{name}'s step due at {t:.2f} s" for name, t in stale)
+            self._stop(f"waiting for {names} (not stepping)", f"{due}, now {now:.2f} s")
             return
         if self._no_progress(now):
             return

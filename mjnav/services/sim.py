@@ -114,7 +114,7 @@ class SimConfig:
     imu_rate_hz: float = 100.0
     obstacles_rate_hz: float = 10.0
     actuation_delay_s: float = 0.01
-    watchdog_timeout_s: float = 0.5
+    watchdog_timeout_s: float = 0.25
     teleop_timeout_s: float = 0.5
     record_path: str = ""
     record_fps: float = 30.0

@@ -43,7 +43,7 @@ class Harness:
             self.world.subscribe(name, callback=self.received[name].append)
         self._pubs: dict[str, Publisher] = {}
         if robot is not None:
-            self._pubs["robot_description"] = pub = self.world.publisher("robot_description")
+            self._pubs[self.world.key("robot_description")] = pub = self.world.publisher("robot_description")
             pub.put(msg_class("std_msgs/msg/String")(data=robot))
         cfg = build_config(service_cls.config_class, config, f"{service_cls.name} test config")
         self.service = service_cls(cfg, peer(), logging.getLogger(f"test.{service_cls.name}"))
@@ -52,19 +52,21 @@ class Harness:
         if robot is not None:
             assert wait_until(lambda: not self.service.starting(), 10.0), self.service.starting()
 
-    def _subscription(self, name: str) -> Subscription:
-        """The service's subscription to ``name`` (found among its bus's declarations)."""
-        key = self.service.bus.key(name)
+    def _subscription(self, name: str, service: str | None = None) -> Subscription:
+        """The service's subscription to ``name`` (of ``service``, for a per-service topic), found among its bus's
+        declarations."""
+        key = self.service.bus.key(name, service)
         subs = [d for d in self.service.bus._declared if isinstance(d, Subscription) and d.key == key]
         assert subs, f"the service does not subscribe to {name}"
         return subs[0]
 
-    def send(self, name: str, msg: Any) -> None:
-        """Publish ``msg`` on ``name`` and wait until the service's subscription has it."""
-        pub = self._pubs.get(name)
+    def send(self, name: str, msg: Any, service: str | None = None) -> None:
+        """Publish ``msg`` on ``name`` (as ``service``'s, for a per-service topic) and wait until the service's
+        subscription has it."""
+        pub = self._pubs.get(self.world.key(name, service))
         if pub is None:
-            pub = self._pubs[name] = self.world.publisher(name)
-        sub = self._subscription(name)
+            pub = self._pubs[self.world.key(name, service)] = self.world.publisher(name, service)
+        sub = self._subscription(name, service)
         assert pub.wait_for_subscribers(10.0)
         before = sub.count
         # The publisher matches as soon as *a* subscriber is known — for a topic that is also an output, the

@@ -372,6 +372,49 @@ def test_controller_slows_on_a_degraded_localisation_and_stops_on_a_lost_one(pee
     assert drive(0, "localised").linear.x == pytest.approx(0.5)
 
 
+def _step_report(t: float, participant: str, due: float) -> object:
+    """mjnav_msgs/LockstepReady: ``participant`` finished its step at ``t``, the next is due at ``due``."""
+    return msg_class("mjnav_msgs/msg/LockstepReady")(
+        header=ros.header(t, ""), participant=participant, ready_until=ros.time_msg(due)
+    )
+
+
+def test_controller_stops_when_a_service_its_inputs_come_from_stops_stepping(peer: Peer) -> None:
+    """Issue 31: the path and the goal's status only come when they change, so their producers' step reports bound
+    their freshness: a planner whose due step is more than upstream_grace_s of sim time late (dead, hung, left out
+    of the lockstep) stops the robot, saying so; its next report lets it drive on. A smoother never heard from is
+    not waited for."""
+    h = Harness(
+        ControllerService, peer, ("cmd_vel", "controller_feedback"), pose_source="ground_truth",
+        pose_timeout_s=100.0, upstream_grace_s=0.15,
+    )  # fmt: skip
+    scanning = _scanning(h)
+    sent = 0
+
+    def speed(t: float) -> float:
+        nonlocal sent
+        h.send("ground_truth", ros.pose_stamped(t, "map", Pose2D(0.0, 0.0, 0.0)))
+        sent += 1
+        scanning(t, {"cmd_vel": sent})
+        return float(h.received["cmd_vel"][-1].linear.x)
+
+    line = np.c_[np.linspace(0.0, 6.0, 61), np.zeros(61)]
+    h.send("goal_status", _status(0.0, 1, STATUS.STATE_FOLLOWING))
+    h.send("path", ros.path_msg(0.0, "map", line))
+    h.send("lockstep", _step_report(0.0, "planner", 0.2), service="planner")
+    t = 0.0
+    for _ in range(7):  # the planner's step was due at 0.2 s: within the grace up to 0.35 s
+        t += 0.05
+        assert speed(t) > 0.0, t
+    t += 0.05  # 0.4 s: 0.2 s late
+    assert speed(t) == 0.0
+    waiting = "waiting for planner (not stepping)"
+    assert wait_until(lambda: h.received["controller_feedback"][-1].text == waiting, 10.0)
+    h.send("lockstep", _step_report(t, "planner", t + 0.2), service="planner")  # a restarted planner reports
+    t += 0.05
+    assert speed(t) > 0.0
+
+
 @pytest.mark.e2e
 def test_controller_reports_no_progress(peer: Peer) -> None:
     """Nav2's progress checker: no 0.25 m of motion in 20 s and the controller gives the goal up, telling the
