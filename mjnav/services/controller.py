@@ -20,8 +20,8 @@ the planner turns into ``ERROR_TIMEOUT``. A controller that (re)starts late gets
 smoother's newest path from their latched topics. The robot's footprint radius comes from the robot description
 the sim latches (:mod:`mjnav.runtime.robot`).
 
-The path and the goal's status come only when they change: their freshness is their producers' (smoother,
-planner, and SLAM on SLAM's pose), whose step reports the controller watches (:mod:`mjnav.runtime.upstream`).
+The path, the goal's status and the map come only when they change: their freshness is their producers' (smoother,
+planner, mapper, and SLAM), whose step reports the controller watches (:mod:`mjnav.runtime.upstream`).
 One whose due step is more than ``upstream_grace_s`` of sim time late — dead, hung, left out of the lockstep —
 stops the robot, saying which, until it reports again.
 
@@ -95,9 +95,10 @@ class ControllerConfig:
         collision_moving_horizon_s: how far ahead moving scan points are checked.
         moving_speed_mps: scan points moving faster than this between two scans count as moving.
         scan_timeout_s: stop when the newest scan is older than this (sim s): the collision check needs one.
-        upstream_grace_s: stop when a service the path, the goal's status or SLAM's pose come from (planner,
-            smoother, slam) has missed its due step by this much (sim s; :mod:`mjnav.runtime.upstream`): it died,
-            hung or was left out of the lockstep, and what it sent last may no longer hold.
+        upstream_grace_s: stop when a service the path, the goal's status, the map or SLAM's pose come from
+            (planner, smoother, mapper, slam) has missed its due step by this much (sim s;
+            :mod:`mjnav.runtime.upstream`): it died, hung or was left out of the lockstep, and what it sent last may
+            no longer hold.
         progress_timeout_s, progress_radius_m: report no progress (the planner fails the goal with
             ``ERROR_TIMEOUT``) when the robot stayed within ``progress_radius_m`` for ``progress_timeout_s`` sim
             seconds while the goal was active.
@@ -208,7 +209,7 @@ class ControllerService(Service[ControllerConfig]):
         self.status_sub = self.bus.subscribe("goal_status")
         slam = self.config.pose_source == "slam"
         self.health_sub = self.bus.subscribe("localization_health") if slam else None
-        inputs = ("path", "goal_status", *(("localization_health",) if slam else ()))  # SLAM's tf comes with it
+        inputs = ("path", "goal_status", "map", *(("localization_health",) if slam else ()))  # and SLAM's tf
         producers = {who for topic in inputs for who in PUBLISH_RIGHTS[topic] if who not in (OPERATOR, OWN)}
         self.upstream = UpstreamWatch(self.bus, producers, self.config.upstream_grace_s)
         self.cmd_pub = self.bus.publisher("cmd_vel")
