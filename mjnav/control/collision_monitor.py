@@ -265,7 +265,7 @@ class CollisionMonitorParams:
       circumscribed radius, which holds the footprint): what that controller passes beside an obstacle stays out
       of the zone (a pursuit command held would be repeated for ever); lead 0.03 m: head-on, while translating,
       the zone reaches 0.05 m, so the robot stops at least 0.05 m (at 0.5 m/s about 0.1 m) from what it drives
-      at, backwards too; a spin is checked with the margin alone. At a slant the lead counts less: 0.065 m at 60°
+      at, backwards too; a spin is checked with the margin alone. At a slant the lead counts less: 0.063 m at 60°
       from the wall's normal, 0.04 m at 80° (the kinematic test's unicycle).
     * stop margin 0.01 m: the last resort, nearly touching: no command may take the robot further in.
     * slowdown: a box the approach zone's width reaching 0.5 m ahead in the direction of travel (behind when
