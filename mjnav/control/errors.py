@@ -9,4 +9,9 @@ class ControlDesignError(ValueError):
     """A controller cannot be designed from the given model (bad shapes, not stabilisable, ...)."""
 
 
-__all__ = ["ControlDesignError", "PathError"]
+class MonitorInputError(ValueError):
+    """Input the collision monitor cannot check: a non-finite command, points that are not an (N, 2) array, a
+    zone polygon that is not convex and counter-clockwise, a zone that is not well formed."""
+
+
+__all__ = ["ControlDesignError", "MonitorInputError", "PathError"]
