@@ -233,6 +233,16 @@ TOPICS: dict[str, Topic] = {
             "World, collisions, real-time factor, watchdog",
         ),
         Topic(
+            "collision_monitor",
+            "diagnostic_msgs/msg/DiagnosticStatus",
+            _S,
+            "sim",
+            "on change",
+            "The collision monitor under every velocity command: OK, WARN (slowed: zone, scale, time to collision) or "
+            "ERROR (stopped)",
+            latched=True,
+        ),
+        Topic(
             "cmd_vel",
             "geometry_msgs/msg/Twist",
             _S,
@@ -511,6 +521,7 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "tf_static": ("sim",),
     "obstacles": ("sim",),
     "sim_status": ("sim", "uav_sim"),
+    "collision_monitor": ("sim",),
     "cmd_vel": ("controller", OPERATOR),
     "cmd_vel_teleop": (OPERATOR,),
     "receipt": (OWN,),

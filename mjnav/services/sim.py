@@ -44,10 +44,11 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from mjnav.bus import Bus, Publisher
+from mjnav.control import CollisionMonitor, CollisionMonitorParams, default_zones
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
 from mjnav.msgs.topics import PUBLISH_RIGHTS
-from mjnav.robot import RobotDescription
+from mjnav.robot import LIDAR_SITE, RobotDescription
 from mjnav.runtime import Service
 from mjnav.runtime.simtime import LockstepBarrier, Pacer, Schedule
 
@@ -85,6 +86,15 @@ class SimConfig:
             moment per clock period, whatever the publishing rates.
         watchdog_timeout_s: zero the wheels when the newest command is this old (sim seconds).
         teleop_timeout_s: ``cmd_vel_teleop`` overrides ``cmd_vel`` until it has been silent this long (sim seconds).
+        collision_monitor: check every command the mux lets through, and again on every scan, against the collision
+            monitor's zones (:class:`mjnav.control.CollisionMonitor`, grown from the robot's footprint: stop at
+            0.01 m, approach at 0.02 m plus 0.03 m ahead in the direction of travel) on the newest scan, moved to
+            the command's time by the wheel odometry; its state goes out on ``collision_monitor``.
+        monitor_time_before_collision_s: the approach zone's T: a command that would reach an obstacle within T
+            is scaled by t/T (Nav2's ``time_before_collision``), seconds.
+        monitor_slowdown_ratio: the slowdown zone's scale (a box 0.5 m ahead in the direction of travel); 1 = no
+            slowdown zone (the default: navigation already slows near obstacles ahead).
+        monitor_min_points: scan points a zone needs before it acts.
         record_path: write an MP4 of the run here ("" = no recording).
         record_fps: video frame rate (frames per sim second).
         record_camera: ``follow`` (a chase camera behind the robot, the default) or ``top`` (the whole world).
@@ -116,6 +126,10 @@ class SimConfig:
     actuation_delay_s: float = 0.01
     watchdog_timeout_s: float = 0.25
     teleop_timeout_s: float = 0.5
+    collision_monitor: bool = True
+    monitor_time_before_collision_s: float = 1.0
+    monitor_slowdown_ratio: float = 1.0
+    monitor_min_points: int = 3
     record_path: str = ""
     record_fps: float = 30.0
     record_camera: str = "follow"
@@ -130,6 +144,7 @@ class SimConfig:
     def __post_init__(self) -> None:
         if not all(v >= 0.0 for v in self.spawn_sigma):
             raise ValueError(f"spawn_sigma must be >= 0 (m, rad), got {list(self.spawn_sigma)}")
+        self.monitor_params()  # its own checks
         if not self.rtf >= 0.0:
             raise ValueError(f"rtf must be >= 0 (0 = as fast as possible), got {self.rtf}")
         if not 0.0 <= self.odom_noise_scale <= 20.0:
@@ -170,6 +185,89 @@ class SimConfig:
             resolve_world(self.world)  # a wrong world fails here, before anything starts
         except UnknownWorldError as exc:
             raise ValueError(str(exc)) from exc
+
+    def monitor_params(self) -> CollisionMonitorParams:
+        """The collision monitor's settings (the library's defaults but for these fields).
+
+        Raises:
+            ValueError: a setting out of its range.
+        """
+        return CollisionMonitorParams(
+            time_before_collision_s=self.monitor_time_before_collision_s,
+            slowdown_ratio=self.monitor_slowdown_ratio,
+            min_points=self.monitor_min_points,
+        )
+
+
+class _MonitoredCommand:
+    """The collision monitor in the sim's command path: every command the mux passes, and the held one again on
+    every scan, is checked against the newest scan (base frame, moved to the command's time by the wheel
+    odometry: what a robot's own monitor has); the state goes out on ``collision_monitor`` when it changes."""
+
+    def __init__(self, sim: Any, bus: Bus, params: CollisionMonitorParams) -> None:
+        footprint = sim.description.footprint_m
+        zones = [z for z in default_zones(footprint, params) if z.action != "slowdown" or params.slowdown_ratio < 1]
+        self.monitor = CollisionMonitor(zones, params)
+        self.sim = sim
+        self.lidar = sim.description.frame(LIDAR_SITE).planar
+        self.points: tuple[Any, Pose2D] | None = None  # newest scan's points (base frame) and the odometry then
+        self.requested: tuple[float, float] | None = None  # the mux's newest command, before the monitor
+        self._pub = bus.publisher("collision_monitor")
+        self._state: tuple[str, str | None, int] = ("", None, -1)
+        self.source = ""
+
+    def command(self, t: float, v: float, w: float, source: str) -> None:
+        """A new command from the mux: check it and drive the wheels with the result (re-arms the watchdog)."""
+        self.requested, self.source = (v, w), source
+        self.sim.set_command(*self._checked(t, v, w))
+
+    def scan(self, t: float, scan: Any) -> None:
+        """A new scan: keep its points, check the held command again (the watchdog is not re-armed)."""
+        x, y, yaw = self.lidar
+        p = scan.points()
+        c, s = math.cos(yaw), math.sin(yaw)
+        base = np.column_stack((x + c * p[:, 0] - s * p[:, 1], y + s * p[:, 0] + c * p[:, 1]))
+        self.points = (base, self.sim.odometry().pose)
+        if self.requested is not None and not self.sim.watchdog_tripped:
+            self.sim.limit_command(*self._checked(t, *self.requested))
+
+    def _checked(self, t: float, v: float, w: float) -> tuple[float, float]:
+        if self.points is None:
+            return v, w
+        base, then = self.points
+        now = self.sim.odometry().pose
+        dx, dy = then.x - now.x, then.y - now.y  # the scan's base frame in the current one
+        c, s = math.cos(-now.theta), math.sin(-now.theta)
+        rot = then.theta - now.theta
+        cr, sr = math.cos(rot), math.sin(rot)
+        ox, oy = c * dx - s * dy, s * dx + c * dy
+        pts = np.column_stack((ox + cr * base[:, 0] - sr * base[:, 1], oy + sr * base[:, 0] + cr * base[:, 1]))
+        result = self.monitor.check(v, w, pts)
+        self._publish(t, result)
+        return result.v_mps, result.omega_radps
+
+    def _publish(self, t: float, result: Any) -> None:
+        action = str(result.action)
+        level = 0 if action == "none" else (2 if result.scale == 0.0 else 1)  # ERROR: the command stopped
+        state = (action, result.zone, level)
+        if state == self._state:
+            return
+        was, self._state = self._state[2], state
+        if action == "none":
+            text = "clear"
+        else:
+            text = f"{'stopped' if level == 2 else 'slowed'} by zone {result.zone} ({action}, scale {result.scale:.2f})"
+        if (level > 0) != (was > 0):  # an intervention starts or ends (not each change within one)
+            log.info("collision monitor: %s (%s's command)", text, self.source)
+        values = {
+            "action": action,
+            "zone": result.zone or "",
+            "scale": f"{result.scale:.3f}",
+            "time_to_collision_s": f"{result.time_to_collision_s:.3f}",
+            "source": self.source,
+            "stamp": f"{t:.6f}",
+        }
+        self._pub.put(ros.diagnostic_status(level, "collision_monitor", text, values))
 
 
 class _Round(enum.Enum):
@@ -282,6 +380,7 @@ class SimBridge:
         self._scan_time_s = 1.0 / lidar.rate_hz if lidar is not None else math.inf
         self.commands_applied = 0
         self.command_topics: tuple[str, ...] = ("cmd_vel",)
+        self.monitor = _MonitoredCommand(sim, bus, config.monitor_params()) if config.collision_monitor else None
         self._clock_out = ClockOut(bus)
 
     @property
@@ -369,7 +468,10 @@ class SimBridge:
             self.teleop_active = False
             cmd = nav
         if cmd is not None:
-            self.sim.set_command(cmd.linear.x, cmd.angular.z)
+            if self.monitor is not None:
+                self.monitor.command(t, cmd.linear.x, cmd.angular.z, "teleop" if self.teleop_active else "navigation")
+            else:
+                self.sim.set_command(cmd.linear.x, cmd.angular.z)
             self.commands_applied += 1
 
     def publish_due(self, t: float) -> None:
@@ -395,6 +497,8 @@ class SimBridge:
         # Scans after the poses of the same tick, so a mapper always finds the pose of a scan's stamp.
         scan = sim.pop_scan()
         if scan is not None:
+            if self.monitor is not None:
+                self.monitor.scan(t, scan)
             cfg = scan.config
             self._pub["scan"].put(
                 ros.laser_scan(

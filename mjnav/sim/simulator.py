@@ -350,6 +350,24 @@ class Simulator:
         self._watchdog_k = _NEVER if self._watchdog_steps == _NEVER else self._k + self._watchdog_steps
         return self._cmd
 
+    def limit_command(self, v_mps: float, omega_radps: float) -> tuple[float, float]:
+        """Replace the held command's twist by (v, ω) without re-arming the watchdog: a safety stage that slows or
+        stops the command it already passed (:class:`mjnav.control.CollisionMonitor` on a newer scan). A tripped
+        watchdog's zero stays.
+
+        Returns:
+            The (v, ω) now applied (as :meth:`set_command`).
+
+        Raises:
+            InvalidCommandError: a value is not finite.
+        """
+        if self._watchdog_tripped:
+            return 0.0, 0.0
+        k, watchdog = self._cmd_k, self._watchdog_k
+        applied = self.set_command(v_mps, omega_radps)
+        self._cmd_k, self._watchdog_k = k, watchdog
+        return applied
+
     # --------------------------------------------------------------- stepping
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps (``n × timestep_s`` seconds), running every event that falls due."""
