@@ -214,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
     from mjnav.runtime.logs import setup_logging
     from mjnav.runtime.stack import add_service_overrides, load_stack, port_overrides
     from mjnav.sim.errors import SimError
-    from mjnav.sim.worlds import world_info
+    from mjnav.sim.truth import compiled_world
 
     setup_logging(args.log_level)
     scratch: tempfile.TemporaryDirectory[str] | None = None
@@ -231,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
             world = world_from_map(args.world, folder / "world.xml", args.seed, args.map_resolution)
         elif args.map_resolution is not None:
             raise ValueError("--map-resolution applies to a Moving AI --world MAP.map only")
-        info = world_info(world)
+        info = compiled_world(world)[0]  # compiled once: the scoring uses the same model
         default_goal = info.goal
         if default_goal is None and not (args.goal or args.goals):
             default_goal = reachable_goal(info, args.seed)
