@@ -186,7 +186,8 @@ TOPICS: dict[str, Topic] = {
             "slam",
             "10 Hz (each scan)",
             "How well SLAM localises: level OK, WARN (degraded: on odometry) or ERROR (lost), why, and values "
-            "(returns, match_score, bad_scans, unmatched_m, degenerate); the controller slows, then stops, on it",
+            "(returns, match_score, bad_scans, unmatched_m, degenerate, starved); the controller slows, then stops, on "
+            "it (not for want of returns: open space)",
         ),
         Topic(
             "initialpose",

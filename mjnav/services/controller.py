@@ -28,9 +28,10 @@ stops the robot, saying which, until it reports again.
 On SLAM's pose (``pose_source = "slam"``) the controller also follows SLAM's ``localization_health``: while the
 localisation is degraded (running on odometry) it drives at most ``degraded_speed_scale`` of its speed, and
 while it is lost among returns that do not match the map it stops, saying why in its feedback and log, until SLAM
-localises again. Lost in open space — SLAM's newest scan had too few returns (``starved`` in the status' values) —
-it drives on at the degraded speed on odometry instead: nothing is within the lidar's range to collide with (the
-collision check still watches the scan), and standing still would never bring a return to localise on.
+localises again. In open space — SLAM's newest scan had too few returns to match (``starved`` in the status'
+values) — it drives on at its speed on odometry, degraded or lost, and says so: the odometry's error grows with
+the distance, not the time, so slower would not localise it sooner, standing still would never bring a return to
+localise on, and what returns there are still pass the collision check.
 """
 
 from __future__ import annotations
@@ -55,8 +56,8 @@ from mjnav.runtime.upstream import UpstreamWatch
 
 _STATUS = "mjnav_msgs/msg/GoalStatus"
 _FEEDBACK = "mjnav_msgs/msg/ControllerFeedback"
-#: Feedback while SLAM is lost for want of returns and the robot drives on on odometry (see the module docstring).
-_OPEN_SPACE = "slowed: localisation lost in open space, driving on odometry"
+#: Feedback while SLAM's scans are bad for want of returns and the robot drives on on odometry (module docstring).
+_OPEN_SPACE = "localisation on odometry in open space (too few lidar returns)"
 #: Sim seconds without a scan, while a goal is active, after which the status says the controller lacks scans.
 STARVED_AFTER_S = 5.0
 #: Map value (occupancy probability, %) from which a cell counts as a wall for the collision check.
@@ -430,10 +431,14 @@ class ControllerService(Service[ControllerConfig]):
             return
         note = ""
         if health is not None and health.level >= health.WARN:  # degraded, or lost in open space
-            cap = self.config.degraded_speed_scale * self.config.max_speed_mps
-            if abs(v) > cap:  # slower on the same arc
-                v, w = math.copysign(cap, v), w * cap / abs(v)
-            note = "slowed: localisation degraded" if health.level == health.WARN else _OPEN_SPACE
+            cap = self.config.max_speed_mps
+            if starved:  # nothing in range to match: slower would not localise it sooner
+                note = _OPEN_SPACE
+            else:
+                cap *= self.config.degraded_speed_scale
+                note = "slowed: localisation degraded"
+                if abs(v) > cap:  # slower on the same arc
+                    v, w = math.copysign(cap, v), w * cap / abs(v)
             if self.slowed != note:
                 self.slowed = note
                 self.log.info("%s: %.2f m/s at most (%s)", note, cap, health.message)

@@ -336,8 +336,8 @@ def test_controller_on_slam_composes_map_to_odom_with_fresh_odometry(peer: Peer)
 
 def test_controller_slows_on_a_degraded_localisation_and_stops_on_a_lost_one(peer: Peer) -> None:
     """Issue 30: on SLAM's pose the controller follows SLAM's localization_health: WARN caps the speed at
-    degraded_speed_scale of max_speed_mps on the same arc, ERROR stops the robot and says why unless SLAM is lost for
-    want of returns (open space: it drives on as degraded); OK again drives on."""
+    degraded_speed_scale of max_speed_mps on the same arc, ERROR stops the robot and says why; for want of returns
+    (open space) it drives on at its speed, degraded or lost, saying so; OK again drives on."""
     h = Harness(
         ControllerService, peer, ("cmd_vel", "controller_feedback"), pose_source="slam", pose_timeout_s=0.5,
         max_speed_mps=0.5, degraded_speed_scale=0.4,
@@ -364,11 +364,12 @@ def test_controller_slows_on_a_degraded_localisation_and_stops_on_a_lost_one(pee
     assert drive(2, "12 lidar returns, fewer than 30; 30 scan(s) in a row, 2.0 m").linear.x == 0.0
     lost = "localisation lost: waiting for SLAM to localise again"
     assert wait_until(lambda: h.received["controller_feedback"][-1].text == lost, 10.0)
-    # Lost with matches that fail stops; lost for want of returns (open space) drives on slowly on odometry.
+    # Lost with matches that fail stops; for want of returns (open space) it drives on at its speed on odometry.
     assert drive(2, "the scan did not match the map; 30 scan(s)", {"starved": "0"}).linear.x == 0.0
-    assert drive(2, "0 lidar returns, fewer than 30; 300 scan(s)", {"starved": "1"}).linear.x == pytest.approx(0.2)
-    open_space = "slowed: localisation lost in open space, driving on odometry"
+    assert drive(2, "0 lidar returns, fewer than 30; 300 scan(s)", {"starved": "1"}).linear.x == pytest.approx(0.5)
+    open_space = "localisation on odometry in open space (too few lidar returns)"
     assert wait_until(lambda: h.received["controller_feedback"][-1].text == open_space, 10.0)
+    assert drive(1, "3 lidar returns, fewer than 30; 3 scan(s)", {"starved": "1"}).linear.x == pytest.approx(0.5)
     assert drive(0, "localised").linear.x == pytest.approx(0.5)
 
 
