@@ -6,6 +6,7 @@ import contextlib
 import os
 import signal
 import socket
+import subprocess
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -84,6 +85,17 @@ def _bindable(port: int) -> bool:
         except OSError:
             return False
         return True
+
+
+def stop_process(proc: subprocess.Popen[str], timeout_s: float = 20.0) -> str:
+    """SIGTERM ``proc`` if it still runs, SIGKILL it after ``timeout_s``; returns what it printed."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    return proc.communicate(timeout=10)[0] or ""
 
 
 def free_port() -> int:

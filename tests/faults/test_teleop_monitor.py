@@ -9,7 +9,6 @@ sim time and on the true pose.
 from __future__ import annotations
 
 import math
-import signal
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -23,7 +22,7 @@ from mjnav.bus import Bus, wait_until
 from mjnav.msgs import ros
 from mjnav.runtime.participant import LockstepParticipant
 from mjnav.sim.truth import FootprintClearance
-from tests.conftest import REPO
+from tests.conftest import REPO, stop_process
 
 pytestmark = pytest.mark.e2e  # a sim process
 
@@ -57,12 +56,7 @@ def _sim(router_endpoint: str, *settings: str) -> Iterator[None]:
     try:
         yield
     finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        proc.communicate(timeout=10)
+        stop_process(proc)
 
 
 @pytest.mark.parametrize("monitor", [True, False])

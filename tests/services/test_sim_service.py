@@ -18,7 +18,7 @@ from mjnav.bus import Bus
 from mjnav.geometry import Pose2D
 from mjnav.msgs import ros
 from mjnav.robot import parse_robot_description
-from tests.conftest import REPO
+from tests.conftest import REPO, stop_process
 
 
 @pytest.fixture
@@ -45,13 +45,7 @@ def sim_process(router_endpoint: str) -> Iterator[subprocess.Popen[str]]:
         stderr=subprocess.STDOUT,
     )
     yield proc
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-    proc.communicate(timeout=10)
+    stop_process(proc, 10.0)
 
 
 @pytest.mark.e2e
