@@ -156,6 +156,7 @@ class ServiceRunner:
         self.stop_event = threading.Event()
         self._started = time.monotonic()
         self._signals = 0
+        self._handle_signals = False
         self._config_lock = threading.Lock()
         self._step_started: float | None = None  # time.monotonic() when the running step began (None: between steps)
         self.hosted: list[_Hosted] = []
@@ -180,9 +181,12 @@ class ServiceRunner:
         self.stop_event.set()
 
     def install_signal_handlers(self) -> None:
-        """SIGINT/SIGTERM request a clean stop; a second one forces exit (main thread only)."""
-        signal.signal(signal.SIGINT, self._on_signal)
-        signal.signal(signal.SIGTERM, self._on_signal)
+        """SIGINT/SIGTERM request a clean stop; a second one forces exit (main thread only). The handlers take over
+        once :meth:`run` has its session open: until then a signal ends the process at once, as by default — the
+        opening of a client session waits in Zenoh for a router as long as it takes, where no Python handler runs,
+        and a service whose launcher died (the launcher's parent-death SIGTERM) before its router answered lived on
+        for ever."""
+        self._handle_signals = True
 
     # ---------------------------------------------------------------------------------------------- status
 
@@ -226,6 +230,9 @@ class ServiceRunner:
     def run(self) -> int:
         """Run until stopped; returns the process exit code (0 after a clean stop)."""
         root = Bus.open(self.bus_config, self.namespace)
+        if self._handle_signals:
+            signal.signal(signal.SIGINT, self._on_signal)
+            signal.signal(signal.SIGTERM, self._on_signal)
         try:
             return self._run(root)
         finally:

@@ -30,7 +30,7 @@ def _state(pid: int) -> str:
     """The process's state letter from /proc ("" once it is gone)."""
     try:
         text = Path(f"/proc/{pid}/stat").read_text()
-    except FileNotFoundError:
+    except OSError:  # FileNotFoundError, or ProcessLookupError while the process is being reaped
         return ""
     return text[text.rindex(")") + 2]
 

@@ -30,7 +30,7 @@ class _Wheels:
 def test_teleop_overrides_navigation_while_fresh(peer: Callable[..., Bus]) -> None:
     wheels = _Wheels()
     sim_bus = peer()
-    bridge = SimBridge(wheels, sim_bus, SimConfig(world="empty", teleop_timeout_s=0.5))
+    bridge = SimBridge(wheels, sim_bus, SimConfig(world="empty", teleop_timeout_s=0.5, collision_monitor=False))
     me = peer()
     pubs = {name: me.publisher(name) for name in ("cmd_vel", "cmd_vel_teleop")}
     subs = {d.key.rsplit("/", 1)[1]: d for d in sim_bus._declared if isinstance(d, Subscription) and "cmd_vel" in d.key}
