@@ -6,9 +6,9 @@ named service's process gets SIGKILL or SIGSTOP. Per run:
 
 * **stand (sim s)**: sim time from the fault to the first true pose from which the robot moves less than 5 mm in
   0.2 s of sim time;
-* **stand (wall s)**: wall time from the first true pose after the fault (in lockstep a hung participant holds sim
-  time: the world stands still until the barrier leaves it out, and its inputs go stale only from then on) to
-  that pose;
+* **stand (wall s)**: wall time to that pose from the first one after the fault, or, when the lockstep barrier
+  held the world for a hung participant (over 1 s of wall time without a pose: nothing moves; its inputs go stale
+  only once sim time goes on without it), from where sim time went on; the time held is printed beside it;
 * the result of the goal (the launcher restarts the service, which resumes from its checkpoints), collisions, and
   whether the map was kept (the first ``map`` after the fault holds at least 95 % of the cells known before).
 
@@ -52,16 +52,23 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _stood(track: list[tuple[float, float, float, float]], fault_s: float) -> tuple[float, float]:
-    """(sim s, wall s) from the fault to standing: see the module docstring; NaN when it never stood."""
+def _stood(track: list[tuple[float, float, float, float]], fault_s: float) -> tuple[float, float, float]:
+    """(sim s, wall s, frozen wall s) from the fault to standing (see the module docstring); NaN if it never stood.
+
+    ``track`` holds (wall, sim, x, y) per true pose. The wall time counts from where sim time went on after the
+    longest wait (over 1 s of wall time without a pose: the barrier holding the world for a hung participant), or
+    from the first pose after the fault when there was none.
+    """
     after = [p for p in track if p[1] >= fault_s]
-    if not after:
-        return math.nan, math.nan
     for i, (_w, t, x, y) in enumerate(after):
         window = [(px, py) for _, pt, px, py in after[i:] if pt <= t + 0.2]
         if after[-1][1] >= t + 0.2 and max(math.hypot(px - x, py - y) for px, py in window) < 0.005:
-            return t - fault_s, after[i][0] - after[0][0]
-    return math.nan, math.nan
+            gaps = [(after[k + 1][0] - after[k][0], k + 1) for k in range(i)]
+            frozen, start = max(gaps, default=(0.0, 0))
+            if frozen <= 1.0:
+                frozen, start = 0.0, 0
+            return t - fault_s, after[i][0] - after[start][0], frozen
+    return math.nan, math.nan, math.nan
 
 
 def run_once(service: str, sig: str) -> dict[str, Any]:
@@ -106,12 +113,13 @@ def run_once(service: str, sig: str) -> dict[str, Any]:
                 os.kill(pid, signal.SIGCONT)
         before = [n for t, n in maps if t <= fault_s]
         later = [n for t, n in maps if t > fault_s + 0.1]
-        stand_sim, stand_wall = _stood(track, fault_s)
+        stand_sim, stand_wall, frozen = _stood(track, fault_s)
         return {
             "service": service,
             "signal": sig,
             "stand_sim_s": stand_sim,
             "stand_wall_s": stand_wall,
+            "frozen_wall_s": frozen,
             "result": outcome[0].result if outcome else "no end",
             "collisions": client.collisions(),
             "map_kept": bool(before and later and later[0] >= 0.95 * before[-1]),
@@ -143,7 +151,8 @@ def main() -> int:
                 rows.append(r)
                 print(
                     f"{service:>10} {sig:<4} run {k}: stands after {r['stand_sim_s']:.2f} s sim / "
-                    f"{r['stand_wall_s']:.2f} s wall  {r['result']}  collisions {r['collisions']}  "
+                    f"{r['stand_wall_s']:.2f} s wall (the world held {r['frozen_wall_s']:.1f} s first)  {r['result']}  "
+                    f"collisions {r['collisions']}  "
                     f"map kept {r['map_kept']}",
                     flush=True,
                 )
