@@ -4,9 +4,9 @@ Nav2's collision_monitor, as a pure function of the newest scan and the command 
 convex polygons in the base frame that move with the robot (:func:`default_zones` grows the robot's footprint by a
 margin for each); a zone with a lead (:attr:`Zone.lead_m`) reaches that much further in the direction of travel
 while the command translates (ahead, or behind when reversing), as a safety scanner's speed-switched fields. Each
-tick :meth:`CollisionMonitor.check` takes the scan's points (base frame; taken as static: a moving obstacle is
-checked where the scan saw it) and the command (v, ω) and returns the command to apply, scaled by one factor s in
-[0, 1] (same curvature; a standing command passes):
+tick :meth:`CollisionMonitor.check` takes the scan's points (base frame), optionally their velocities (below), and
+the command (v, ω) and returns the command to apply, scaled by one factor s in [0, 1] (same curvature; a standing
+command passes):
 
 * **stop** — at least ``min_points`` points inside the zone: s = 0, unless the command moves out (below).
 * **slowdown** — at least ``min_points`` points inside: s = ``slowdown_ratio`` (Nav2's rule as it is: slowing is
@@ -31,10 +31,35 @@ polygonal disc turning in place; a command so slow that its steps take the point
 the approach zone that creep stays under tolerance / T per second (2 mm/s by default). On a noisy scan a command
 along a wall inside the zone is held now and then (a new return a little deeper than the deepest so far).
 
+**Moving points.** Points given a velocity u (over the ground, in the base frame's axes, e.g. from two scans:
+:func:`mjnav.control.collision.track_scan`; zero: static) are checked apart from the static ones (each set counts
+its own ``min_points``) by the stop and approach zones; slowdown counts them where they are. The roll-out moves each
+by u·t at step time t, up to ``moving_horizon_s`` (longer than T: a cart crossing the robot's way must be seen
+before the robot enters its lane), and against them the zone grows by ``uncertainty_growth_mps`` per second ahead.
+Slowing does not put off a crossing obstacle: once the robot is in its lane, the collision comes when the obstacle
+does, however slowly the robot moves. So where the roll-out meets moving points:
+
+* the robot could stand where it is (no moving point enters its zone there within the horizon): t is the time to
+  the first pose on the arc it could not hold (moving points would enter its zone there before the horizon, on
+  their straight tracks, exactly), s = t / T. The robot approaches a crossing cart's lane as it would a wall, waits
+  at its edge, and drives on once the roll-out is clear: the cart has passed, or is far enough that the command
+  crosses ahead of it.
+* standing is hit too (a cart coming at the robot, a robot already in a cart's lane): standing does not escape, so
+  only a command whose first contact comes more than one step sooner than standing's is limited, by its own time
+  to collision. The robot backs away from a cart coming head-on, drives on out of a cart's lane, and is slowed
+  driving at the cart.
+* points already inside the zone: the command may not take them deeper than the deeper of now and where they get
+  with the robot standing (by more than ``escape_tolerance_m``; the stop zone over its first step, the approach zone
+  over its roll-out). So it may back away from a cart pushing in, or follow one that draws away.
+
+Moving points never relax the static rules: a command that takes static points deeper is held whatever moves
+(escaping a cart does not drive the robot into a wall). Nothing the monitor does to the command keeps a moving
+obstacle from running into a robot that cannot get out of its way.
+
 Every depth is measured in the zone polygon, so user-drawn zones (a box ahead) follow the same rules. Non-finite
 points (no return) are ignored. Points are taken as they are: a caller whose scan is older than the command should
-move it to the command's time (odometry since the scan), or count its age in the margins (see
-:class:`CollisionMonitorParams`).
+move it to the command's time (odometry since the scan, and moving points by u·age), or count its age in the margins
+(see :class:`CollisionMonitorParams`).
 """
 
 from __future__ import annotations
@@ -146,30 +171,96 @@ def offset_polygon(polygon_m: ArrayLike, margin_m: float) -> FloatArray:
 @dataclass(frozen=True, slots=True)
 class _Shape:
     """A convex polygon as half-planes: inward unit normals (E, 2), offsets (E,) (inside: n·p >= offset), the
-    farthest vertex's distance from the origin."""
+    farthest vertex's distance from the origin, and how far a vertex moves per metre the edges move out (1 /
+    cos of half the largest exterior angle: the polygon grown by δ lies within radius_m + miter·δ)."""
 
     normals: FloatArray
     offsets: FloatArray
     radius_m: float
+    miter: float
 
     @staticmethod
     def of(polygon: FloatArray) -> _Shape:
         """The half-planes of a (K, 2) convex counter-clockwise polygon."""
         e = np.roll(polygon, -1, axis=0) - polygon
         n = np.column_stack((-e[:, 1], e[:, 0])) / np.hypot(e[:, 0], e[:, 1])[:, None]
-        return _Shape(n, np.einsum("ij,ij->i", n, polygon), float(np.hypot(polygon[:, 0], polygon[:, 1]).max()))
+        turn = float(np.clip(np.einsum("ij,ij->i", n, np.roll(n, 1, axis=0)), -1.0, 1.0).min())
+        return _Shape(
+            n,
+            np.einsum("ij,ij->i", n, polygon),
+            float(np.hypot(polygon[:, 0], polygon[:, 1]).max()),
+            math.sqrt(2.0 / (1.0 + turn)),
+        )
 
-    def nth_depth(self, points: FloatArray, poses: FloatArray, n: int) -> FloatArray:
-        """(S,) the n-th largest depth of ``points`` (N, 2) in the shape placed at each of the (S, 3) poses (x, y, θ
-        in the current base frame), metres; -inf with fewer than n points."""
-        if len(points) < n:
+    def nth_depth(self, points: FloatArray, poses: FloatArray, n: int, grown_m: FloatArray | None = None) -> FloatArray:
+        """(S,) the n-th largest depth of ``points`` in the shape placed at each of the (S, 3) poses (x, y, θ in the
+        current base frame), metres; -inf with fewer than n points.
+
+        Args:
+            points: (N, 2), or (S, N, 2) where they are at each pose's time (moving points).
+            poses: (S, 3) poses.
+            n: which depth.
+            grown_m: (S,) the shape at each pose grown by this (every edge moved out: each depth gains it), metres;
+                points beyond the grown shape's reach count as -inf (their depth is negative: only the sign of a
+                negative n-th depth is meant).
+        """
+        count = points.shape[-2]
+        if count < n:
             return np.full(len(poses), -math.inf)
         c, s = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])  # (S, 1)
-        dx, dy = points[:, 0] - poses[:, 0:1], points[:, 1] - poses[:, 1:2]  # (S, N)
-        local = np.stack((c * dx + s * dy, c * dy - s * dx), axis=-1)  # (S, N, 2): the points in the shape's frame
-        depth = (local @ self.normals.T - self.offsets).min(axis=2)  # (S, N)
-        k = len(points) - n
+        dx, dy = points[..., 0] - poses[:, 0:1], points[..., 1] - poses[:, 1:2]  # (S, N)
+        if grown_m is None:
+            local = np.stack((c * dx + s * dy, c * dy - s * dx), axis=-1)  # (S, N, 2): in the shape's frame
+            depth = (local @ self.normals.T - self.offsets).min(axis=2)  # (S, N)
+        else:
+            reach = self.radius_m + self.miter * grown_m[:, None]
+            near = dx * dx + dy * dy <= reach * reach  # (S, N): only these can be inside the grown shape
+            depth = np.full(dx.shape, -math.inf)
+            c, s, g = (np.broadcast_to(a, dx.shape)[near] for a in (c, s, grown_m[:, None]))
+            dx, dy = dx[near], dy[near]
+            local = np.column_stack((c * dx + s * dy, c * dy - s * dx))
+            depth[near] = (local @ self.normals.T - self.offsets).min(axis=1) + g
+        k = count - n
         return np.asarray(np.partition(depth, k, axis=1)[:, k])
+
+    def held_hits(
+        self,
+        points: FloatArray,
+        velocities: FloatArray,
+        poses: FloatArray,
+        t: FloatArray,
+        horizon_s: float,
+        n: int,
+        growth_mps: float = 0.0,
+    ) -> NDArray[np.bool_]:
+        """(S,) True where the shape placed at pose s (x, y, θ) and held there from time t_s to ``horizon_s`` would
+        have at least n of the points inside it at some time, each moving from ``points`` (N, 2, at time 0) at its
+        velocity (N, 2), m/s: a count of the points that enter it in that window (each at its own time). The shape
+        is grown by ``growth_mps`` per second from time 0 (every depth gains growth·t).
+
+        Exact (Cyrus-Beck clipping of each point's straight track against the half-planes), not sampled.
+        """
+        span = (horizon_s - t)[:, None]  # (S, 1) the window's length
+        px = points[:, 0] + velocities[:, 0] * t[:, None] - poses[:, 0:1]  # (S, N): where they are at t_s
+        py = points[:, 1] + velocities[:, 1] * t[:, None] - poses[:, 1:2]
+        ux, uy = np.broadcast_to(velocities[:, 0], px.shape), np.broadcast_to(velocities[:, 1], px.shape)
+        # Only tracks that come within the shape's reach (grown to the horizon) of the pose in the window matter.
+        u2 = np.maximum(ux * ux + uy * uy, 1e-300)
+        closest = np.clip(-(px * ux + py * uy) / u2, 0.0, span)
+        reach = self.radius_m + self.miter * growth_mps * horizon_s
+        near = (px + ux * closest) ** 2 + (py + uy * closest) ** 2 <= reach * reach
+        row = np.nonzero(near)[0]
+        c, s = np.cos(poses[row, 2:3]), np.sin(poses[row, 2:3])  # (K, 1)
+        px, py, ux, uy = px[near][:, None], py[near][:, None], ux[near][:, None], uy[near][:, None]
+        alpha = (c * px + s * py) * self.normals[:, 0] + (c * py - s * px) * self.normals[:, 1] - self.offsets
+        alpha += growth_mps * t[row, None]  # (K, E) the depths behind each edge at t_s
+        beta = (c * ux + s * uy) * self.normals[:, 0] + (c * uy - s * ux) * self.normals[:, 1] + growth_mps
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cross = -alpha / beta  # seconds after t_s at which the point crosses each edge's line
+        enter = np.maximum(np.where(beta > 0.0, cross, -math.inf).max(axis=1), 0.0)
+        leave = np.minimum(np.where(beta < 0.0, cross, math.inf).min(axis=1), span[row, 0])
+        inside = (enter <= leave) & ~((beta == 0.0) & (alpha < 0.0)).any(axis=1)
+        return np.asarray(np.bincount(row[inside], minlength=len(poses)) >= n)
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,6 +367,13 @@ class CollisionMonitorParams:
       (0.55 m at full speed) returns at least 4 of 360 beams.
     * escape tolerance 2 mm: a 32-gon of radius 0.4 m (the diffbot's approach zone is one of 0.2 m) turning in place
       moves its facets by up to 1.9 mm.
+    * moving horizon 4 s: T plus the 2.9 s the diffbot needs at 0.5 m/s to cross a 1 m lane (its front at the
+      lane's near edge to its zone clear of the far one: 1 m + 0.38 m + 0.07 m), so a cart that would reach the
+      robot while it crosses is seen while the robot is still T from the lane. In the kinematic test (a 1.0 x 0.7 m
+      box crossing at 0.79 m/s) 3 s let a robot arriving at the lane 2.5 s ahead of the box enter it and be hit.
+    * growth 0.1 m/s (the navigation controller's): a cart's face 3 m away is sampled by a return every 5 cm, its
+      velocity is a two-scan estimate and carts accelerate. Without it the same loop's robot, arriving 2.5 s ahead
+      of the box, clipped its corner: it outran the face's last returns.
 
     Attributes:
         stop_margin_m: the stop zone is the footprint grown by this, metres, >= 0.
@@ -285,6 +383,11 @@ class CollisionMonitorParams:
         approach_margin_m: the approach zone (the shape rolled out) is the footprint grown by this, metres, >= 0.
         approach_lead_m: the approach zone's :attr:`Zone.lead_m`, metres, >= 0.
         time_before_collision_s: the approach zone's T, seconds, > 0.
+        moving_horizon_s: how far ahead an approach zone's roll-out follows moving points (the longer of this and
+            the zone's T), seconds, >= time_before_collision_s.
+        uncertainty_growth_mps: against moving points the stop and approach zones grow by this per second of
+            prediction (a velocity is a two-scan estimate, obstacles accelerate, a surface is sampled by a few
+            returns), m/s, >= 0.
         simulation_step_s: the roll-out's step dt, seconds, in (0, T].
         min_points: points inside a zone before it acts, >= 1.
         escape_tolerance_m: how much deeper a stop or approach zone's points may get before a command counts as
@@ -298,6 +401,8 @@ class CollisionMonitorParams:
     approach_margin_m: float = 0.02
     approach_lead_m: float = 0.03
     time_before_collision_s: float = 1.0
+    moving_horizon_s: float = 4.0
+    uncertainty_growth_mps: float = 0.1
     simulation_step_s: float = 0.1
     min_points: int = 3
     escape_tolerance_m: float = 0.002
@@ -305,7 +410,7 @@ class CollisionMonitorParams:
     def __post_init__(self) -> None:
         check_params(
             self,
-            positive=("time_before_collision_s", "simulation_step_s"),
+            positive=("time_before_collision_s", "moving_horizon_s", "simulation_step_s"),
             non_negative=(
                 "stop_margin_m",
                 "slowdown_margin_m",
@@ -314,12 +419,15 @@ class CollisionMonitorParams:
                 "approach_lead_m",
                 "slowdown_ratio",
                 "escape_tolerance_m",
+                "uncertainty_growth_mps",
             ),
         )
         if self.slowdown_ratio > 1.0:
             raise ValueError(f"CollisionMonitorParams.slowdown_ratio must be in [0, 1], got {self.slowdown_ratio}")
         if self.simulation_step_s > self.time_before_collision_s:
             raise ValueError("CollisionMonitorParams.simulation_step_s must be <= time_before_collision_s")
+        if self.moving_horizon_s < self.time_before_collision_s:
+            raise ValueError("CollisionMonitorParams.moving_horizon_s must be >= time_before_collision_s")
         if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) or self.min_points < 1:
             raise ValueError(f"CollisionMonitorParams.min_points must be an integer >= 1, got {self.min_points}")
 
@@ -375,7 +483,9 @@ class MonitorResult:
         zone: the name of the zone that limited it, or None.
         time_to_collision_s: the shortest time to collision an approach zone found on the command's arc (the last
             collision-free step), seconds, whether or not that zone limited the command; inf when none collides
-            within its horizon or when the command was checked against no approach zone.
+            within its horizon or when the command was checked against no approach zone. Against moving points, the
+            time that scaled it (see the module docstring): to the first pose the robot could not hold, or to the
+            command's own contact.
     """
 
     v_mps: float
@@ -415,24 +525,32 @@ class CollisionMonitor:
         """A monitor with the :func:`default_zones` of ``footprint_m`` ((K, 2) convex CCW, base frame, metres)."""
         return cls(default_zones(footprint_m, params), params)
 
-    def check(self, v_mps: float, omega_radps: float, points_xy: ArrayLike) -> MonitorResult:
+    def check(
+        self, v_mps: float, omega_radps: float, points_xy: ArrayLike, velocities_mps: ArrayLike | None = None
+    ) -> MonitorResult:
         """The command to apply instead of (v, ω), given the newest scan.
 
         Args:
             v_mps: forward speed the robot is about to apply, m/s (negative: reversing).
             omega_radps: yaw rate, rad/s (counter-clockwise positive).
             points_xy: (N, 2) scan points in the base frame, metres; rows with a NaN or inf are ignored.
+            velocities_mps: (N, 2) each point's velocity over the ground, expressed in the base frame's axes, m/s
+                (0: static; not relative to the robot, whose own motion the roll-out adds), or None: all static.
+                Must be finite where the point is.
 
         Returns:
             The scaled command and what limited it.
 
         Raises:
-            MonitorInputError: the command is not finite, or the points are not an (N, 2) array.
+            MonitorInputError: the command is not finite, the points are not an (N, 2) array, or the velocities not
+                an (N, 2) array of the points' N rows, finite where the points are.
         """
         v, w = float(v_mps), float(omega_radps)
         if not (math.isfinite(v) and math.isfinite(w)):
             raise MonitorInputError(f"command must be finite, got v={v_mps} m/s, omega={omega_radps} rad/s")
-        pts = _finite_points(points_xy)
+        pts, vel = _finite_points(points_xy, velocities_mps)
+        moving = np.any(vel != 0.0, axis=1)
+        static, mov, mov_vel = pts[~moving], pts[moving], vel[moving]
         best = (1.0, 3, -1)  # (scale, severity, zone index): the most restrictive so far
         ttc = math.inf
         if (v == 0.0 and w == 0.0) or not self.zones:
@@ -444,9 +562,13 @@ class CollisionMonitor:
                     continue
                 scale = zone.slowdown_ratio
             else:
-                t_hit = self._first_hit(zone, shape, v, w, pts)
-                if t_hit is None:
+                hits = (
+                    self._first_hit(zone, shape, v, w, static),
+                    self._first_moving_hit(zone, shape, v, w, mov, mov_vel),
+                )
+                if hits == (None, None):
                     continue
+                t_hit = min(h for h in hits if h is not None)
                 scale = 0.0
                 if zone.action is MonitorAction.APPROACH:
                     ttc = min(ttc, t_hit)
@@ -480,15 +602,79 @@ class CollisionMonitor:
         hit = ahead > now + self.params.escape_tolerance_m if now >= 0.0 else ahead >= 0.0
         return float(np.argmax(hit)) * dt if hit.any() else None
 
+    def _first_moving_hit(
+        self, zone: Zone, shape: _Shape, v: float, w: float, pts: FloatArray, vel: FloatArray
+    ) -> float | None:
+        """The last collision-free step's time (s) of a stop or approach zone on the arc (v, ω) against the moving
+        points ``pts`` (M, 2) at ``vel`` (M, 2), or None when they do not limit the command (the rules: the module
+        docstring's *Moving points*)."""
+        n = zone.min_points
+        if len(pts) < n:
+            return None
+        dt = self.params.simulation_step_s
+        approach = zone.action is MonitorAction.APPROACH
+        horizon = max(zone.time_before_collision_s, self.params.moving_horizon_s) if approach else dt
+        steps = math.ceil(horizon / dt - 1e-9)
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        growth = self.params.uncertainty_growth_mps
+        reach = shape.radius_m + (abs(v) + speed + shape.miter * growth) * steps * dt  # (M,) of the arc's zones
+        near = np.hypot(pts[:, 0], pts[:, 1]) <= reach
+        pts, vel, speed = pts[near], vel[near], speed[near]
+        if len(pts) < n:
+            return None
+        # Samples per step: no vertex of the zone moves more than _SWEEP_STEP_M relative to a point per sample.
+        sub = max(1, math.ceil((abs(v) + abs(w) * shape.radius_m + float(speed.max())) * dt / _SWEEP_STEP_M))
+        t = np.arange(steps * sub + 1, dtype=np.float64) * (dt / sub)  # from 0: the robot where it stands
+        poses: FloatArray = np.column_stack((_arc(v, w, t), w * t))
+        moved = pts[None, :, :] + vel[None, :, :] * t[:, None, None]  # (S, M, 2): the points at each sample
+        ahead = shape.nth_depth(moved, poses, n, growth * t)
+        standing = shape.nth_depth(moved, np.zeros_like(poses), n, growth * t)
+        if standing[0] >= 0.0:
+            # Inside now: the command may not take them deeper than the deeper of now and where they get with the
+            # robot standing (the growth is for contact ahead: compared here without it).
+            now, grown = standing[0], growth * t
+            deeper = ahead - grown > np.maximum(standing - grown, now) + self.params.escape_tolerance_m
+            if not deeper[1:].any():
+                return None
+            return float(int(np.argmax(deeper[1:])) // sub) * dt
+        if not approach:
+            return None
+        contact = ahead[1:] >= 0.0
+        if not contact.any():
+            return None
+        first = int(np.argmax(contact)) + 1  # the command's first contact, index into t
+        held = shape.held_hits(pts, vel, poses[: first + 1], t[: first + 1], steps * dt, n, growth)
+        if held[0]:  # standing is hit too: only a command that brings the contact sooner (by a step) is limited
+            touch = standing[1:] >= 0.0
+            t_standing = t[int(np.argmax(touch)) + 1] if touch.any() else steps * dt
+            if t[first] >= t_standing - dt:
+                return None
+        elif held[1:].any():  # stop before the first pose on the arc the robot could not hold
+            first = int(np.argmax(held[1:])) + 1
+        return float((first - 1) // sub) * dt
 
-def _finite_points(points_xy: ArrayLike) -> FloatArray:
-    """(M, 2) the rows of ``points_xy`` that are finite."""
+
+def _finite_points(points_xy: ArrayLike, velocities_mps: ArrayLike | None) -> tuple[FloatArray, FloatArray]:
+    """(M, 2) the rows of ``points_xy`` that are finite, and (M, 2) their velocities (zero when None)."""
     try:
         p = np.asarray(points_xy, dtype=np.float64)
     except (TypeError, ValueError):
         raise MonitorInputError("points must be an (N, 2) array of numbers") from None
     if p.size == 0:
-        return np.zeros((0, 2))
+        p = np.zeros((0, 2))
     if p.ndim != 2 or p.shape[1] != 2:
         raise MonitorInputError(f"points must be an (N, 2) array, got shape {p.shape}")
-    return p[np.isfinite(p).all(axis=1)]
+    ok = np.isfinite(p).all(axis=1)
+    if velocities_mps is None:
+        return p[ok], np.zeros((int(ok.sum()), 2))
+    try:
+        u = np.asarray(velocities_mps, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MonitorInputError("velocities must be an (N, 2) array of numbers") from None
+    if u.size == 0 and len(p) == 0:
+        u = np.zeros((0, 2))
+    if u.shape != p.shape:
+        raise MonitorInputError(f"velocities must be an (N, 2) array as the points {p.shape}, got shape {u.shape}")
+    if not np.isfinite(u[ok]).all():
+        raise MonitorInputError("velocities must be finite where the points are")
+    return p[ok], u[ok]

@@ -257,6 +257,154 @@ def test_a_rectangle_and_a_disc_differ_where_their_shapes_do() -> None:
     assert not _monitor(DISC, only=("approach",)).check(0.5, 0.0, point).limited
 
 
+# ------------------------------------------------------------------------------------------------ moving points
+
+#: Exact roll-out times for the hand-made moving cases: fine steps, no growth of the zone against moving points.
+EXACT = dataclasses.replace(ONE, simulation_step_s=0.01, uncertainty_growth_mps=0.0)
+
+
+def _segment(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
+    """Points along a segment, 5 mm apart, base frame."""
+    n = max(2, math.ceil(math.hypot(x1 - x0, y1 - y0) / 0.005) + 1)
+    return np.column_stack((np.linspace(x0, x1, n), np.linspace(y0, y1, n)))
+
+
+def _cart(x0: float, y0: float) -> np.ndarray:
+    """The returns of a 1.0 x 0.7 m cart's south face (y = y0, x in [x0, x0 + 1]) and west face (x = x0)."""
+    return np.vstack((_segment(x0, y0, x0 + 1.0, y0), _segment(x0, y0, x0, y0 + 0.7)))
+
+
+def _moving(points: np.ndarray, u: tuple[float, float]) -> np.ndarray:
+    return np.tile(np.asarray(u, dtype=np.float64), (len(points), 1))
+
+
+def test_a_cart_crossing_ahead_holds_the_robot_by_the_time_to_its_lane() -> None:
+    """The cart will reach the robot's way in 2 s, while the robot (at 0.5 m/s) would be in its lane: the time that
+    scales the command is that to the first pose the robot could not hold (its zone's front at the lane), not the
+    cart's 2 s; a cart seen as static beside the way limits nothing, and one that comes after the robot has
+    crossed does not either."""
+    m = _monitor(DISC, EXACT, only=("approach",))
+    lane = 0.6037  # the cart's near edge; the approach zone reaches 0.23 m ahead (R + 0.02 margin + 0.03 lead)
+    cart = _cart(lane, 0.2 + 0.79 * 2.0)
+    south = _moving(cart, (0.0, -0.79))
+    r = m.check(0.5, 0.0, cart, south)
+    exact = (lane - 0.23) / 0.5
+    assert r.action is MonitorAction.APPROACH
+    assert exact - 0.01 <= r.time_to_collision_s <= exact and r.v_mps == pytest.approx(0.5 * r.time_to_collision_s)
+    assert not m.check(0.5, 0.0, cart).limited
+    # Reaching the way at 3.9 s, after the zone has left the lane (its rear at lane + 1 m at 3.61 s): no contact.
+    later = cart + np.array([0.0, 0.79 * 1.9])
+    assert not m.check(0.5, 0.0, later, south).limited
+    # The same with the default horizon cut to T = 1 s: the cart's arrival is out of sight.
+    short = _monitor(DISC, dataclasses.replace(EXACT, moving_horizon_s=1.0), only=("approach",))
+    assert not short.check(0.5, 0.0, cart, south).limited
+
+
+def test_a_cart_that_has_passed_or_draws_away_does_not_limit() -> None:
+    m = _monitor(DISC, only=("stop", "approach"))
+    ahead = _segment(0.5, -0.3, 0.5, 0.3)  # a cart's back 0.27 m beyond the approach zone's front
+    assert m.check(0.5, 0.0, ahead).action is MonitorAction.APPROACH  # static: a wall
+    assert not m.check(0.5, 0.0, ahead, _moving(ahead, (0.79, 0.0))).limited  # drawing away faster than the robot
+    assert m.check(0.5, 0.0, ahead, _moving(ahead, (0.3, 0.0))).action is MonitorAction.APPROACH  # slower: caught up
+    passed = _segment(0.3, -0.15, 1.3, -0.15)  # a cart's north face, in the robot's way ...
+    assert m.check(0.5, 0.0, passed).action is MonitorAction.APPROACH
+    assert not m.check(0.5, 0.0, passed, _moving(passed, (0.0, -0.79))).limited  # ... leaving it
+
+
+def test_a_cart_coming_at_the_robot_slows_driving_at_it_and_not_backing_away() -> None:
+    """Head-on: standing, the cart reaches the approach zone in 1.43 s (1.27 m at 0.79 m/s + the zone's growth),
+    driving at it in 0.91 s: sooner, so that is limited (v·t/T); backing away or turning in place meets it later,
+    so it passes. Taken as static the face is 2.5 s ahead: beyond T."""
+    m = _monitor(DISC, only=("stop", "approach"))
+    face = _segment(1.5, -0.35, 1.5, 0.35)
+    west = _moving(face, (-0.79, 0.0))
+    r = m.check(0.5, 0.0, face, west)
+    assert r.action is MonitorAction.APPROACH and r.scale == pytest.approx(0.9)
+    for v, w in ((-0.5, 0.0), (-0.3, 0.5), (0.0, 1.0)):
+        assert not m.check(v, w, face, west).limited
+    assert not m.check(0.5, 0.0, face).limited
+
+
+def test_a_robot_in_a_carts_lane_drives_on_out_of_it() -> None:
+    """The cart will reach the robot's side in 1 s, standing or driving on: driving on (or back) does not bring the
+    contact sooner, so it passes; turning towards the cart does (by 0.15 s), and is limited."""
+    m = _monitor(DISC, only=("stop", "approach"))
+    cart = _cart(-0.4, 1.0)
+    south = _moving(cart, (0.0, -0.79))
+    for v in (0.5, -0.5):
+        r = m.check(v, 0.0, cart, south)
+        assert not r.limited and r.v_mps == v
+    r = m.check(0.5, 1.0, cart, south)
+    assert r.action is MonitorAction.APPROACH and r.scale < 1.0
+    assert not m.check(0.5, -1.0, cart, south).limited  # turning away
+
+
+def test_moving_points_do_not_relax_the_static_rules() -> None:
+    """Against a wall (static, in the stop zone) with a cart pushing in from behind: forward into the wall is
+    stopped although it moves away from the cart, and backing into the cart is stopped too; turning in place
+    passes (a disc)."""
+    m = _monitor(DISC, only=("stop", "approach"))
+    wall, cart = _wall_x(R + 0.005, 0.5), _wall_x(-(R + 0.005), 0.5)
+    points = np.vstack((wall, cart))
+    u = np.vstack((np.zeros_like(wall), _moving(cart, (0.3, 0.0))))
+    assert m.check(0.3, 0.0, points, u).action is MonitorAction.STOP
+    assert m.check(-0.3, 0.0, points, u).action is MonitorAction.STOP
+    assert not m.check(-0.3, 0.0, wall).limited  # without the cart, backing off the wall is allowed
+    assert not m.check(0.0, 1.0, points, u).limited
+
+
+def test_inside_the_stop_zone_a_command_may_follow_a_cart_that_draws_away() -> None:
+    m = _monitor(DISC, only=("stop", "approach"))
+    back = _wall_x(R + 0.005, 0.5)  # touching distance
+    away = _moving(back, (0.3, 0.0))
+    assert not m.check(0.2, 0.0, back, away).limited  # no deeper than now
+    assert m.check(0.5, 0.0, back, away).action is MonitorAction.STOP  # deeper than now and than standing
+    assert m.check(0.2, 0.0, back).action is MonitorAction.STOP  # static: no closer
+
+
+def test_zero_velocities_give_what_no_velocities_give() -> None:
+    scenes = [
+        (DISC, _wall_x(0.41), [(0.5, 0.0), (0.5, 0.1), (-0.5, 0.0)]),
+        (DISC, _wall_x(R + 0.005), [(0.3, 0.0), (-0.3, 0.8), (0.0, 1.0)]),
+        (DISC, np.array([[0.65, 0.0], [0.65, 0.01], [0.66, 0.0]]), [(0.5, 0.1), (0.2, 0.0)]),
+        (RECT, np.array([[0.30, 0.0]]), [(0.0, 1.0), (0.0, -1.0)]),
+        (RECT, _wall_y(0.215 + 0.005), [(0.5, 0.0), (0.3, 1.0), (0.0, -1.0)]),
+    ]
+    for footprint, points, commands in scenes:
+        m = _monitor(footprint)
+        for v, w in commands:
+            assert m.check(v, w, points, np.zeros_like(points)) == m.check(v, w, points)
+
+
+def test_velocities_must_be_an_array_like_the_points() -> None:
+    m = _monitor(DISC)
+    wall = _wall_x(0.41)
+    for bad in (np.zeros((len(wall), 3)), np.zeros((len(wall) - 1, 2)), np.zeros(len(wall)), [["a", "b"]] * len(wall)):
+        with pytest.raises(MonitorInputError, match="velocities"):
+            m.check(0.5, 0.0, wall, bad)
+    u = np.zeros_like(wall)
+    u[3] = np.nan
+    with pytest.raises(MonitorInputError, match="finite"):
+        m.check(0.5, 0.0, wall, u)
+    # A velocity beside a point that is ignored (no return) is ignored with it.
+    holes = wall.copy()
+    holes[3] = np.nan
+    assert m.check(0.5, 0.0, holes, u) == m.check(0.5, 0.0, holes)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"moving_horizon_s": 0.5}, "moving_horizon_s"),
+        ({"moving_horizon_s": math.inf}, "moving_horizon_s"),
+        ({"uncertainty_growth_mps": -0.1}, "uncertainty_growth_mps"),
+    ],
+)
+def test_invalid_moving_params_raise_naming_the_field(change: dict[str, float], field: str) -> None:
+    with pytest.raises(ValueError, match=f"CollisionMonitorParams.{field}"):
+        CollisionMonitorParams(**change)  # type: ignore[arg-type]
+
+
 # ------------------------------------------------------------------------------------------------ input
 
 
@@ -372,24 +520,32 @@ def _drive(
     footprint: np.ndarray,
     t_end_s: float,
     decel_mps2: float = 1.0,
+    motion: Callable[[float, np.ndarray], np.ndarray] | None = None,
 ) -> tuple[float, np.ndarray, float]:
     """A unicycle under the monitor: 10 Hz scans (1 cm range noise, seeded), a 20 Hz command held between ticks and
     applied 10 ms late, speed and yaw rate moving towards it at no more than ``decel_mps2`` and 4 rad/s², 5 ms
-    steps. Returns (smallest clearance between the footprint and the world, final pose, final speed)."""
+    steps. With ``motion`` ((time, (M, 2) world points) → their (M, 2) world velocities) the monitor also gets
+    each scan point's exact velocity. Returns (smallest clearance between the footprint and the world, final pose,
+    final speed)."""
     rng = np.random.default_rng(7)
     h = 0.005
     x, y, th = pose
     u = w = 0.0
     target, pending = (0.0, 0.0), (math.inf, (0.0, 0.0))
     points = np.zeros((0, 2))
+    velocities = None
     smallest = math.inf
     for i in range(round(t_end_s / h)):
         t = i * h
         segs = world(t)
         if i % 20 == 0:
             points = scan_points(segs, (x, y, th), rng, 0.01)
+            if motion is not None:
+                c, s = math.cos(th), math.sin(th)
+                rot = np.array([[c, s], [-s, c]])  # base → world, row vectors
+                velocities = motion(t, points @ rot + (x, y)) @ rot.T
         if i % 10 == 0:
-            r = monitor.check(*command, points)
+            r = monitor.check(*command, points, velocities)
             pending = (t + 0.01, (r.v_mps, r.omega_radps))
         if pending[0] <= t + 1e-12:
             target, pending = pending[1], (math.inf, pending[1])
@@ -442,3 +598,87 @@ def test_a_box_crossing_the_path_is_waited_for_and_the_robot_goes_on(start_y: fl
     smallest, pose, speed = _drive(world, (0.0, 0.0, 0.0), (0.5, 0.0), monitor, DIFFBOT, 8.0)
     assert smallest >= 0.05
     assert pose[0] > 2.5 and speed == pytest.approx(0.5)
+
+
+#: The crossing cart of the warehouse world: 1.0 m along the robot's way, 0.7 m across it, at its peak speed.
+BOX_ALONG_M, BOX_ACROSS_M, BOX_SPEED_MPS = 1.0, 0.7, 0.79
+#: The lane's near edge on the robot's way (x), and when the robot's front gets there at 0.5 m/s from rest at x = 0
+#: (1 m/s² to full speed: 0.25 s lost), unimpeded.
+LANE_X, DIFFBOT_RADIUS = 2.5, 0.19
+ROBOT_AT_LANE_S = 0.25 + (LANE_X - DIFFBOT_RADIUS) / 0.5
+
+
+def _crossing_box(
+    arrival_s: float, side: int = 1
+) -> tuple[Callable[[float], np.ndarray], Callable[[float, np.ndarray], np.ndarray]]:
+    """The box sliding across the robot's way (the line y = 0) at BOX_SPEED_MPS, over the lane x in [LANE_X, LANE_X +
+    BOX_ALONG_M], coming from the left (side 1, moving -y) or the right (side -1), its leading face reaching the
+    diffbot's side (|y| = 0.19 m) at ``arrival_s``: the world's segments at time t, and (t, points) → velocities
+    (the box's for points on its outline, else 0)."""
+
+    def span(t: float) -> tuple[float, float]:
+        lead = DIFFBOT_RADIUS + BOX_SPEED_MPS * (arrival_s - t)  # the leading face's distance from the way
+        a, b = side * lead, side * (lead + BOX_ACROSS_M)
+        return min(a, b), max(a, b)
+
+    def world(t: float) -> np.ndarray:
+        lo, hi = span(t)
+        c = [(LANE_X, lo), (LANE_X + BOX_ALONG_M, lo), (LANE_X + BOX_ALONG_M, hi), (LANE_X, hi)]
+        return np.array([[*c[i], *c[(i + 1) % 4]] for i in range(4)])
+
+    def motion(t: float, p: np.ndarray) -> np.ndarray:
+        lo, hi = span(t)
+        on = (np.abs(p[:, 0] - (LANE_X + 0.5 * BOX_ALONG_M)) <= 0.5 * BOX_ALONG_M + 0.01) & (
+            (p[:, 1] >= lo - 0.01) & (p[:, 1] <= hi + 0.01)
+        )
+        u = np.zeros_like(p)
+        u[on, 1] = -side * BOX_SPEED_MPS
+        return u
+
+    return world, motion
+
+
+def _cross(lead_s: float, side: int = 1, velocities: bool = True) -> tuple[float, np.ndarray, float, float]:
+    """Teleop at 0.5 m/s along y = 0 across the box's lane, the box reaching the robot's way ``lead_s`` after the
+    robot reaches its lane (negative: before). Returns the loop's (clearance, final pose, final speed) and where the
+    robot would have ended unimpeded (x, m)."""
+    arrival = ROBOT_AT_LANE_S + lead_s
+    t_end = max(arrival, ROBOT_AT_LANE_S) + 5.5  # the box passes in 1.4 s; the robot then crosses in 3.4 s at most
+    world, motion = _crossing_box(arrival, side)
+    monitor = CollisionMonitor.for_footprint(DIFFBOT)
+    smallest, pose, speed = _drive(
+        world, (0.0, 0.0, 0.0), (0.5, 0.0), monitor, DIFFBOT, t_end, motion=motion if velocities else None
+    )
+    return smallest, pose, speed, 0.125 + 0.5 * (t_end - 0.5 - 0.01)  # the first command acts 10 ms late
+
+
+@pytest.mark.parametrize(
+    ("lead_s", "side"),
+    [(1.0, 1), (1.0, -1), (0.0, 1), (-1.0, 1), (2.5, 1)],
+    ids=["robot-1s-first", "robot-1s-first-from-right", "together", "box-1s-first", "robot-2.5s-first"],
+)
+def test_full_speed_across_a_crossing_carts_lane_waits_at_its_edge_and_goes_on(lead_s: float, side: int) -> None:
+    """The warehouse's cart (1.0 x 0.7 m at 0.79 m/s) crossing the way of the diffbot teleoperated at 0.5 m/s, with
+    the velocities of its returns: the robot is held before the lane, at least 0.05 m from the cart, and drives on
+    once the cart has passed, past the lane at full speed. Arriving 2.5 s ahead of the cart it would not have
+    crossed in time (it needs 2.8 s)."""
+    smallest, pose, speed, free_x = _cross(lead_s, side)
+    assert smallest >= 0.05
+    assert pose[0] > LANE_X + BOX_ALONG_M + DIFFBOT_RADIUS and speed == pytest.approx(0.5)
+    assert pose[0] < free_x - 0.25  # it waited (at least 0.5 s)
+
+
+def test_a_robot_that_crosses_ahead_of_the_cart_is_not_held() -> None:
+    """Arriving 3.5 s ahead of the cart the robot clears its lane 0.7 s before it comes: it drives through at full
+    speed, never slowed."""
+    smallest, pose, speed, free_x = _cross(3.5)
+    assert smallest >= 0.05 and speed == 0.5
+    assert pose[0] == pytest.approx(free_x, abs=2e-3)  # one tick at 0.9 of full speed would lose 2.5 mm
+
+
+@pytest.mark.parametrize("lead_s", [1.0, 0.0])
+def test_without_velocities_the_crossing_cart_runs_into_the_robot(lead_s: float) -> None:
+    """The same runs with the cart's returns taken as static: the cart hits the robot in its lane (the monitor sees
+    the cart only once it is in the robot's way)."""
+    smallest, _, _, _ = _cross(lead_s, velocities=False)
+    assert smallest == 0.0
