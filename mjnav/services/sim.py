@@ -45,6 +45,7 @@ import numpy as np
 
 from mjnav.bus import Bus, Publisher
 from mjnav.control import CollisionMonitor, CollisionMonitorParams, default_zones
+from mjnav.control.collision import TrackedScan, TrackingParams, track_scan
 from mjnav.geometry import Pose2D
 from mjnav.msgs import msg_class, ros
 from mjnav.msgs.topics import PUBLISH_RIGHTS
@@ -59,6 +60,9 @@ log = logging.getLogger("mjnav.sim")
 
 #: ``sim_status`` messages per sim second.
 SIM_STATUS_RATE_HZ = 10.0
+#: Scan points moving slower than this between two scans count as static for the collision monitor, m/s (the
+#: controller's default: lidar noise and the aperture problem stay below it).
+MOVING_SPEED_MPS = 0.25
 
 
 @dataclass(frozen=True)
@@ -88,8 +92,9 @@ class SimConfig:
         teleop_timeout_s: ``cmd_vel_teleop`` overrides ``cmd_vel`` until it has been silent this long (sim seconds).
         collision_monitor: check every command the mux lets through, and again on every scan, against the collision
             monitor's zones (:class:`mjnav.control.CollisionMonitor`, grown from the robot's footprint: stop at
-            0.01 m, approach at 0.02 m plus 0.03 m ahead in the direction of travel) on the newest scan, moved to
-            the command's time by the wheel odometry; its state goes out on ``collision_monitor``.
+            0.01 m, approach at 0.02 m plus 0.03 m ahead in the direction of travel) on the newest scan, its
+            moving returns predicted at the velocities two scans give, moved to the command's time by the wheel
+            odometry; its state goes out on ``collision_monitor``.
         monitor_time_before_collision_s: the approach zone's T: a command that would reach an obstacle within T
             is scaled by t/T (Nav2's ``time_before_collision``), seconds.
         monitor_slowdown_ratio: the slowdown zone's scale (a box 0.5 m ahead in the direction of travel); 1 = no
@@ -201,16 +206,18 @@ class SimConfig:
 
 class _MonitoredCommand:
     """The collision monitor in the sim's command path: every command the mux passes, and the held one again on
-    every scan, is checked against the newest scan (base frame, moved to the command's time by the wheel
-    odometry: what a robot's own monitor has); the state goes out on ``collision_monitor`` when it changes."""
+    every scan, is checked against the newest scan (its returns and their velocities from two scans,
+    :func:`mjnav.control.collision.track_scan`, in the wheel odometry's frame and moved to the command's time by it:
+    what a robot's own monitor has); the state goes out on ``collision_monitor`` when it changes."""
 
-    def __init__(self, sim: Any, bus: Bus, params: CollisionMonitorParams) -> None:
+    def __init__(self, sim: Any, bus: Bus, params: CollisionMonitorParams, tracking: TrackingParams) -> None:
         footprint = sim.description.footprint_m
         zones = [z for z in default_zones(footprint, params) if z.action != "slowdown" or params.slowdown_ratio < 1]
         self.monitor = CollisionMonitor(zones, params)
         self.sim = sim
         self.lidar = sim.description.frame(LIDAR_SITE).planar
-        self.points: tuple[Any, Pose2D] | None = None  # newest scan's points (base frame) and the odometry then
+        self.tracking = tracking
+        self.tracked: TrackedScan | None = None  # the newest scan, odometry frame, with velocities
         self.requested: tuple[float, float] | None = None  # the mux's newest command, before the monitor
         self._pub = bus.publisher("collision_monitor")
         self._state: tuple[str, str | None, int] = ("", None, -1)
@@ -222,27 +229,27 @@ class _MonitoredCommand:
         self.sim.set_command(*self._checked(t, v, w))
 
     def scan(self, t: float, scan: Any) -> None:
-        """A new scan: keep its points, check the held command again (the watchdog is not re-armed)."""
+        """A new scan: track it, check the held command again (the watchdog is not re-armed)."""
+        odom = self.sim.odometry().pose
         x, y, yaw = self.lidar
-        p = scan.points()
-        c, s = math.cos(yaw), math.sin(yaw)
-        base = np.column_stack((x + c * p[:, 0] - s * p[:, 1], y + s * p[:, 0] + c * p[:, 1]))
-        self.points = (base, self.sim.odometry().pose)
+        c, s = math.cos(odom.theta), math.sin(odom.theta)
+        sensor = (odom.x + c * x - s * y, odom.y + s * x + c * y, odom.theta + yaw)
+        cfg = scan.config
+        self.tracked = track_scan(
+            scan.stamp_s, sensor, cfg.angle_min_rad, cfg.angle_increment_rad, scan.ranges_m, cfg.range_min_m,
+            cfg.range_max_m, self.tracked, self.tracking,
+        )  # fmt: skip
         if self.requested is not None and not self.sim.watchdog_tripped:
             self.sim.limit_command(*self._checked(t, *self.requested))
 
     def _checked(self, t: float, v: float, w: float) -> tuple[float, float]:
-        if self.points is None:
+        if self.tracked is None:
             return v, w
-        base, then = self.points
-        now = self.sim.odometry().pose
-        dx, dy = then.x - now.x, then.y - now.y  # the scan's base frame in the current one
-        c, s = math.cos(-now.theta), math.sin(-now.theta)
-        rot = then.theta - now.theta
-        cr, sr = math.cos(rot), math.sin(rot)
-        ox, oy = c * dx - s * dy, s * dx + c * dy
-        pts = np.column_stack((ox + cr * base[:, 0] - sr * base[:, 1], oy + sr * base[:, 0] + cr * base[:, 1]))
-        result = self.monitor.check(v, w, pts)
+        pose = self.sim.odometry().pose
+        points = pose.inverse().transform_points(self.tracked.points)
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        velocities = self.tracked.velocities @ np.array([[c, -s], [s, c]])  # odometry frame -> base frame axes
+        result = self.monitor.check(v, w, points, velocities)
         self._publish(t, result)
         return result.v_mps, result.omega_radps
 
@@ -380,7 +387,11 @@ class SimBridge:
         self._scan_time_s = 1.0 / lidar.rate_hz if lidar is not None else math.inf
         self.commands_applied = 0
         self.command_topics: tuple[str, ...] = ("cmd_vel",)
-        self.monitor = _MonitoredCommand(sim, bus, config.monitor_params()) if config.collision_monitor else None
+        self.monitor = (
+            _MonitoredCommand(sim, bus, config.monitor_params(), TrackingParams(moving_speed_mps=MOVING_SPEED_MPS))
+            if config.collision_monitor
+            else None
+        )
         self._clock_out = ClockOut(bus)
 
     @property
