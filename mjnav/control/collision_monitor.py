@@ -33,25 +33,24 @@ along a wall inside the zone is held now and then (a new return a little deeper 
 
 **Moving points.** Points given a velocity u (over the ground, in the base frame's axes, e.g. from two scans:
 :func:`mjnav.control.collision.track_scan`; zero: static) are checked apart from the static ones (each set counts
-its own ``min_points``) by the stop and approach zones; slowdown counts them where they are. The roll-out moves each
-by u·t at step time t, up to ``moving_horizon_s`` (longer than T: a cart crossing the robot's way must be seen
-before the robot enters its lane), and against them the zone grows by ``uncertainty_growth_mps`` per second ahead.
-Slowing does not put off a crossing obstacle: once the robot is in its lane, the collision comes when the obstacle
-does, however slowly the robot moves. So where the roll-out meets moving points:
+its own ``min_points``) by the stop and approach zones; slowdown counts them where they are. The approach zone's
+roll-out moves each by u·t at step time t, up to ``moving_horizon_s`` (longer than T: a cart that would cross the
+robot's way must be seen before the robot enters its lane), the zone grown against them by
+``uncertainty_growth_mps`` per second ahead. Where it meets them, slowing alone does not help: once the robot is in
+a crossing cart's lane the collision comes when the cart does, however slowly the robot moves. So t is the time to
+the first pose on the arc that the robot could not hold: a moving point would enter its zone there (held from when
+the robot gets there; on the point's straight track, the zone grown as on the roll-out) within the horizon, and,
+where one would enter the zone of the robot standing where it is (exactly: without the growth, nor the lead, so a
+robot held at a lane's edge is not in the lane), more than one step sooner than there (both zones grown). Any one
+point's track counts (the contact took ``min_points``): a cart's lane starts at its first return. Without such a
+pose the moving points do not limit the command. The robot approaches a crossing cart's lane as it would a wall,
+waits at its edge, and drives on once the roll-out is clear (the cart has passed, or is far enough that the command
+crosses ahead of it); in a cart's lane it drives on out of it (standing there is no better); it may back away from
+a cart coming at it, not drive towards it.
 
-* the robot could stand where it is (no moving point enters its zone there within the horizon): t is the time to
-  the first pose on the arc it could not hold (moving points would enter its zone there before the horizon, on
-  their straight tracks, exactly), s = t / T. The robot approaches a crossing cart's lane as it would a wall, waits
-  at its edge, and drives on once the roll-out is clear: the cart has passed, or is far enough that the command
-  crosses ahead of it.
-* standing is hit too (a cart coming at the robot, a robot already in a cart's lane): standing does not escape, so
-  only a command whose first contact comes more than one step sooner than standing's is limited, by its own time
-  to collision. The robot backs away from a cart coming head-on, drives on out of a cart's lane, and is slowed
-  driving at the cart.
-* points already inside the zone: the command may not take them deeper than the deeper of now and where they get
-  with the robot standing (by more than ``escape_tolerance_m``; the stop zone over its first step, the approach zone
-  over its roll-out). So it may back away from a cart pushing in, or follow one that draws away.
-
+Moving points already inside a stop or approach zone: the command may not take them deeper than the deeper of now
+and where they get with the robot standing (by more than ``escape_tolerance_m``; the stop zone over its first step,
+the approach zone over its roll-out), so it may back away from a cart pushing in or follow one that draws away.
 Moving points never relax the static rules: a command that takes static points deeper is held whatever moves
 (escaping a cart does not drive the robot into a wall). Nothing the monitor does to the command keeps a moving
 obstacle from running into a robot that cannot get out of its way.
@@ -223,7 +222,7 @@ class _Shape:
         k = count - n
         return np.asarray(np.partition(depth, k, axis=1)[:, k])
 
-    def held_hits(
+    def entry_times(
         self,
         points: FloatArray,
         velocities: FloatArray,
@@ -232,35 +231,40 @@ class _Shape:
         horizon_s: float,
         n: int,
         growth_mps: float = 0.0,
-    ) -> NDArray[np.bool_]:
-        """(S,) True where the shape placed at pose s (x, y, θ) and held there from time t_s to ``horizon_s`` would
-        have at least n of the points inside it at some time, each moving from ``points`` (N, 2, at time 0) at its
-        velocity (N, 2), m/s: a count of the points that enter it in that window (each at its own time). The shape
-        is grown by ``growth_mps`` per second from time 0 (every depth gains growth·t).
+    ) -> FloatArray:
+        """(S,) when the n-th of the points would enter the shape placed at pose s (x, y, θ) and held there from
+        time t_s, each moving on its straight track from ``points`` (N, 2) at time 0 at its velocity (N, 2), m/s:
+        the n-th earliest time a point enters it in [t_s, ``horizon_s``], seconds from now; inf when fewer enter.
+        The shape grows by ``growth_mps`` per second from time 0 (every depth gains growth·time).
 
-        Exact (Cyrus-Beck clipping of each point's straight track against the half-planes), not sampled.
+        Exact (Cyrus-Beck clipping of each track against the half-planes), not sampled.
         """
+        if len(points) < n:
+            return np.full(len(poses), math.inf)
         span = (horizon_s - t)[:, None]  # (S, 1) the window's length
         px = points[:, 0] + velocities[:, 0] * t[:, None] - poses[:, 0:1]  # (S, N): where they are at t_s
         py = points[:, 1] + velocities[:, 1] * t[:, None] - poses[:, 1:2]
         ux, uy = np.broadcast_to(velocities[:, 0], px.shape), np.broadcast_to(velocities[:, 1], px.shape)
-        # Only tracks that come within the shape's reach (grown to the horizon) of the pose in the window matter.
-        u2 = np.maximum(ux * ux + uy * uy, 1e-300)
-        closest = np.clip(-(px * ux + py * uy) / u2, 0.0, span)
+        # Only tracks that come within the shape's reach of the pose in the window can enter it.
+        closest = np.clip(-(px * ux + py * uy) / np.maximum(ux * ux + uy * uy, 1e-300), 0.0, span)
         reach = self.radius_m + self.miter * growth_mps * horizon_s
         near = (px + ux * closest) ** 2 + (py + uy * closest) ** 2 <= reach * reach
         row = np.nonzero(near)[0]
         c, s = np.cos(poses[row, 2:3]), np.sin(poses[row, 2:3])  # (K, 1)
         px, py, ux, uy = px[near][:, None], py[near][:, None], ux[near][:, None], uy[near][:, None]
         alpha = (c * px + s * py) * self.normals[:, 0] + (c * py - s * px) * self.normals[:, 1] - self.offsets
-        alpha += growth_mps * t[row, None]  # (K, E) the depths behind each edge at t_s
-        beta = (c * ux + s * uy) * self.normals[:, 0] + (c * uy - s * ux) * self.normals[:, 1] + growth_mps
+        alpha += growth_mps * t[row, None]  # (K, E) the depths behind each edge at t_s, m
+        beta = (c * ux + s * uy) * self.normals[:, 0] + (c * uy - s * ux) * self.normals[:, 1] + growth_mps  # m/s
         with np.errstate(divide="ignore", invalid="ignore"):
             cross = -alpha / beta  # seconds after t_s at which the point crosses each edge's line
         enter = np.maximum(np.where(beta > 0.0, cross, -math.inf).max(axis=1), 0.0)
         leave = np.minimum(np.where(beta < 0.0, cross, math.inf).min(axis=1), span[row, 0])
         inside = (enter <= leave) & ~((beta == 0.0) & (alpha < 0.0)).any(axis=1)
-        return np.asarray(np.bincount(row[inside], minlength=len(poses)) >= n)
+        times = np.full(px.shape[0], math.inf)
+        times[inside] = enter[inside] + t[row[inside]]
+        table = np.full((len(poses), len(points)), math.inf)
+        table[near] = times
+        return np.asarray(np.partition(table, n - 1, axis=1)[:, n - 1])
 
 
 @dataclass(frozen=True, eq=False)
@@ -370,10 +374,14 @@ class CollisionMonitorParams:
     * moving horizon 4 s: T plus the 2.9 s the diffbot needs at 0.5 m/s to cross a 1 m lane (its front at the
       lane's near edge to its zone clear of the far one: 1 m + 0.38 m + 0.07 m), so a cart that would reach the
       robot while it crosses is seen while the robot is still T from the lane. In the kinematic test (a 1.0 x 0.7 m
-      box crossing at 0.79 m/s) 3 s let a robot arriving at the lane 2.5 s ahead of the box enter it and be hit.
+      box crossing at 0.79 m/s) 3 s let a robot arriving at the lane 2.9 s ahead of the box enter it and be hit;
+      of 2, 2.5, 3 and 3.5 s, 3.5 s was the shortest that kept it clear at every timing tried (the box 1 s before
+      to 3.5 s after the robot, at 0.4, 0.79 and 1.2 m/s).
     * growth 0.1 m/s (the navigation controller's): a cart's face 3 m away is sampled by a return every 5 cm, its
-      velocity is a two-scan estimate and carts accelerate. Without it the same loop's robot, arriving 2.5 s ahead
-      of the box, clipped its corner: it outran the face's last returns.
+      velocity is a two-scan estimate, carts accelerate. Without it the same loop's robot, arriving 2.5 s ahead of
+      the box, clipped its corner (the roll-out outran the face's last returns and saw no contact); with it the
+      robot waits 0.1 m further back per second until the cart comes, and a velocity off by 10 % and 5° (drawn
+      afresh every scan) still kept it clear.
 
     Attributes:
         stop_margin_m: the stop zone is the footprint grown by this, metres, >= 0.
@@ -385,9 +393,9 @@ class CollisionMonitorParams:
         time_before_collision_s: the approach zone's T, seconds, > 0.
         moving_horizon_s: how far ahead an approach zone's roll-out follows moving points (the longer of this and
             the zone's T), seconds, >= time_before_collision_s.
-        uncertainty_growth_mps: against moving points the stop and approach zones grow by this per second of
-            prediction (a velocity is a two-scan estimate, obstacles accelerate, a surface is sampled by a few
-            returns), m/s, >= 0.
+        uncertainty_growth_mps: against moving points the approach zone grows by this per second ahead, on the
+            roll-out and at the poses the robot could not hold (a velocity is a two-scan estimate, obstacles
+            accelerate, a surface is sampled by a few returns), m/s, >= 0.
         simulation_step_s: the roll-out's step dt, seconds, in (0, T].
         min_points: points inside a zone before it acts, >= 1.
         escape_tolerance_m: how much deeper a stop or approach zone's points may get before a command counts as
@@ -483,9 +491,8 @@ class MonitorResult:
         zone: the name of the zone that limited it, or None.
         time_to_collision_s: the shortest time to collision an approach zone found on the command's arc (the last
             collision-free step), seconds, whether or not that zone limited the command; inf when none collides
-            within its horizon or when the command was checked against no approach zone. Against moving points, the
-            time that scaled it (see the module docstring): to the first pose the robot could not hold, or to the
-            command's own contact.
+            within its horizon or when the command was checked against no approach zone. Against moving points: to
+            the first pose on the arc the robot could not hold (see the module docstring).
     """
 
     v_mps: float
@@ -627,31 +634,35 @@ class CollisionMonitor:
         t = np.arange(steps * sub + 1, dtype=np.float64) * (dt / sub)  # from 0: the robot where it stands
         poses: FloatArray = np.column_stack((_arc(v, w, t), w * t))
         moved = pts[None, :, :] + vel[None, :, :] * t[:, None, None]  # (S, M, 2): the points at each sample
-        ahead = shape.nth_depth(moved, poses, n, growth * t)
-        standing = shape.nth_depth(moved, np.zeros_like(poses), n, growth * t)
+        grown = growth * t
+        ahead = shape.nth_depth(moved, poses, n, grown)
+        standing = shape.nth_depth(moved, np.zeros_like(poses), n, np.zeros_like(t))
         if standing[0] >= 0.0:
             # Inside now: the command may not take them deeper than the deeper of now and where they get with the
             # robot standing (the growth is for contact ahead: compared here without it).
-            now, grown = standing[0], growth * t
-            deeper = ahead - grown > np.maximum(standing - grown, now) + self.params.escape_tolerance_m
-            if not deeper[1:].any():
-                return None
-            return float(int(np.argmax(deeper[1:])) // sub) * dt
+            tol = self.params.escape_tolerance_m
+            deeper = ahead[1:] - grown[1:] > np.maximum(standing[1:], standing[0]) + tol
+            return float(int(np.argmax(deeper)) // sub) * dt if deeper.any() else None
         if not approach:
             return None
-        contact = ahead[1:] >= 0.0
-        if not contact.any():
+        if not (ahead[1:] >= 0.0).any():  # no contact on the roll-out (the growth counts here, for the estimate)
             return None
-        first = int(np.argmax(contact)) + 1  # the command's first contact, index into t
-        held = shape.held_hits(pts, vel, poses[: first + 1], t[: first + 1], steps * dt, n, growth)
-        if held[0]:  # standing is hit too: only a command that brings the contact sooner (by a step) is limited
-            touch = standing[1:] >= 0.0
-            t_standing = t[int(np.argmax(touch)) + 1] if touch.any() else steps * dt
-            if t[first] >= t_standing - dt:
-                return None
-        elif held[1:].any():  # stop before the first pose on the arc the robot could not hold
-            first = int(np.argmax(held[1:])) + 1
-        return float((first - 1) // sub) * dt
+        # A pose the robot could not hold: a moving point would enter its zone there, held from when the robot gets
+        # there, within the horizon (on its track, the zone grown as on the roll-out), and — if one would enter the
+        # zone of the robot standing where it is (exactly, and without the lead: a robot held at a lane's edge is
+        # not in the lane) — more than a step sooner than there (both grown). Any one point counts (the contact took
+        # min_points), so a cart's lane starts at its first return, not at its min_points-th (5 cm apart at 3 m).
+        # The poses are those of the static roll-out (no zone vertex moves more than _SWEEP_STEP_M from one to the
+        # next: the tracks are followed exactly, so the points' speeds do not count here).
+        horizon_s, still, origin = steps * dt, zone._shapes[0], np.zeros((1, 3))
+        here = still.entry_times(pts, vel, origin, t[:1], horizon_s, 1)[0]
+        if here < math.inf:
+            here = still.entry_times(pts, vel, origin, t[:1], horizon_s, 1, growth)[0]
+        held = max(1, math.ceil((abs(v) + abs(w) * shape.radius_m) * dt / _SWEEP_STEP_M))
+        th = np.arange(1, steps * held + 1, dtype=np.float64) * (dt / held)
+        entry = shape.entry_times(pts, vel, np.column_stack((_arc(v, w, th), w * th)), th, horizon_s, 1, growth)
+        worse = entry < here - dt
+        return float(int(np.argmax(worse)) // held) * dt if worse.any() else None
 
 
 def _finite_points(points_xy: ArrayLike, velocities_mps: ArrayLike | None) -> tuple[FloatArray, FloatArray]:

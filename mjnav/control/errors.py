@@ -10,8 +10,9 @@ class ControlDesignError(ValueError):
 
 
 class MonitorInputError(ValueError):
-    """Input the collision monitor cannot check: a non-finite command, points that are not an (N, 2) array, a
-    zone polygon that is not convex and counter-clockwise, a zone that is not well formed."""
+    """Input the collision monitor cannot check: a non-finite command, points that are not an (N, 2) array,
+    velocities that are not the points' (N, 2) or not finite where the points are, a zone polygon that is not
+    convex and counter-clockwise, a zone that is not well formed."""
 
 
 __all__ = ["ControlDesignError", "MonitorInputError", "PathError"]

@@ -208,7 +208,8 @@ class _MonitoredCommand:
     """The collision monitor in the sim's command path: every command the mux passes, and the held one again on
     every scan, is checked against the newest scan (its returns and their velocities from two scans,
     :func:`mjnav.control.collision.track_scan`, in the wheel odometry's frame and moved to the command's time by it:
-    what a robot's own monitor has); the state goes out on ``collision_monitor`` when it changes."""
+    what a robot's own monitor has; moving returns moved on by their velocity for the scan's age); the state goes
+    out on ``collision_monitor`` when it changes."""
 
     def __init__(self, sim: Any, bus: Bus, params: CollisionMonitorParams, tracking: TrackingParams) -> None:
         footprint = sim.description.footprint_m
@@ -246,7 +247,8 @@ class _MonitoredCommand:
         if self.tracked is None:
             return v, w
         pose = self.sim.odometry().pose
-        points = pose.inverse().transform_points(self.tracked.points)
+        age = max(t - self.tracked.stamp_s, 0.0)  # moving returns go on moving while the scan ages
+        points = pose.inverse().transform_points(self.tracked.points + age * self.tracked.velocities)
         c, s = math.cos(pose.theta), math.sin(pose.theta)
         velocities = self.tracked.velocities @ np.array([[c, -s], [s, c]])  # odometry frame -> base frame axes
         result = self.monitor.check(v, w, points, velocities)
