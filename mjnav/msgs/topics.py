@@ -443,7 +443,8 @@ TOPICS: dict[str, Topic] = {
             _S,
             "flight_controller",
             "10 Hz + on change",
-            "disarmed, armed, offboard, landing, failsafe_land",
+            "disarmed, armed, offboard, landing, failsafe_land (no setpoint), failsafe_hold / failsafe_descend "
+            "(position lost), failsafe_return (geofence)",
             stack_namespace="uav0",
         ),
     )
