@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
 from mjnav.aerial import geodetic_to_enu
-from mjnav.bus import Bus, wait_until
+from mjnav.bus import Bus, BusConfig, wait_until
 from mjnav.msgs import ros
 from mjnav.msgs import uav as uav_msgs
 from mjnav.services.uav_sim import UavBridge, UavSimConfig, in_windows
@@ -202,3 +203,33 @@ def test_the_ins_gates_a_gps_outlier_and_reports_a_lost_position(peer: Callable[
     # on the barometer the altitude stays put while the horizontal estimate is dead reckoning
     truth_up = 0.062
     assert abs(-ins.position[2] - truth_up) < 0.3
+
+
+def test_under_secure_the_ins_gets_the_datum_latched_before_it_subscribed(tmp_path: Path) -> None:
+    # The INS often starts after the sim has put the datum: it must come from the publisher's history through the
+    # router's access control (Zenoh's wildcards do not match the history keys' verbatim @adv chunk).
+    from mjnav.bus.acl import secure_router_config
+    from mjnav.bus.certs import make_certificates
+    from mjnav.bus.config import tls_files
+    from tests.conftest import free_port
+
+    services = ["uav_sim", "ins", "flight_controller"]
+    make_certificates(tmp_path, services)
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    opened = [Bus.open(secure_router_config(tmp_path, [endpoint], "uav0", services))]
+
+    def client(identity: str) -> Bus:
+        config = BusConfig(mode="client", connect=(endpoint,), listen=(), **tls_files(tmp_path, identity))
+        opened.append(Bus.open(config, "uav0"))
+        return opened[-1]
+
+    try:
+        sim = client("uav_sim")
+        sim.publisher("datum").put(uav_msgs.nav_sat_fix(0.0, 47.397742, 8.545594, 488.0, 0.0))
+        probe = client("uav_sim").subscribe("datum")  # the publisher's own rights: the history is served
+        assert probe.wait(10.0) is not None
+        got = client("ins").subscribe("datum").wait(10.0)
+        assert got is not None and got.latitude == 47.397742
+    finally:
+        for bus in reversed(opened):
+            bus.close()
