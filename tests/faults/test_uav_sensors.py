@@ -233,3 +233,28 @@ def test_under_secure_the_ins_gets_the_datum_latched_before_it_subscribed(tmp_pa
     finally:
         for bus in reversed(opened):
             bus.close()
+
+
+def test_a_plausible_sample_stamped_ahead_displaces_only_the_real_one_of_its_stamp() -> None:
+    # What the checks cannot tell from the real thing (level, at rest, on the period) and arrives early takes the
+    # place of the real sample with its stamp, no more: the step's samples are taken in stamp order, so the real
+    # ones before it are not refused as older than it.
+    from mjnav.aerial import ImuCheck
+    from mjnav.services.ins import ImuIntake
+
+    intake = ImuIntake(ImuCheck(), _NoLog(), "uav0/imu")
+    level = (0.0, 0.0, 0.0, 1.0)
+    for step in range(1, 26):  # 25 steps of 4 samples, each step's last stamp forged first
+        now = round(0.04 * step, 6)
+        intake.add(ros.imu(now, "forged", level, (0.0, 0.0, 0.0), (0.0, 0.0, 9.80665)))
+        for k in range(3, -1, -1):
+            intake.add(ros.imu(round(now - 0.01 * k, 6), "imu", level, (0.0, 0.0, 0.0), (0.0, 0.0, 9.80665)))
+        taken, periods = intake.take(now)
+        assert [m.header.frame_id for m in taken] == ["imu", "imu", "imu", "forged"]
+        assert np.all(periods == 1)
+    assert intake.check.accepted == 100 and intake.check.rejected["stamp_not_increasing"] == 25
+
+
+class _NoLog:
+    def warning(self, *args: Any) -> None:
+        """Rejections are counted by the check; the test reads the counts."""
