@@ -33,6 +33,7 @@ def _fixes(peer: Callable[..., Bus], **config: Any) -> list[tuple[float, np.ndar
     got: list[Any] = []
     world.subscribe("gps", callback=got.append)
     clock = world.subscribe("clock")
+    assert bridge._pub["gps"].wait_for_subscribers(10.0) and bridge._clock_out._pub.wait_for_subscribers(10.0)
     bridge.advance(3.0)
     assert clock.wait(10.0, lambda c: ros.seconds(c.clock) >= 3.0 - 1e-9) is not None
     assert wait_until(lambda: len(got) >= 1, 10.0)
