@@ -395,7 +395,7 @@ TOPICS: dict[str, Topic] = {
             "diagnostic_msgs/msg/DiagnosticArray",
             _S,
             "ins",
-            "25 Hz",
+            "5 Hz + on change",
             "INS health, stamped as its estimate: OK, WARN (no barometer fused), ERROR (no GPS fix fused for "
             "`gps_timeout_s`: the horizontal position is lost), with the fused / rejected (χ² gate) / reset counts "
             "of GPS and barometer and the rejected IMU samples by reason",

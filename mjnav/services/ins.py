@@ -21,6 +21,7 @@ health on ``ins_health`` (``diagnostic_msgs/DiagnosticArray``, same stamp): ERRO
 ``gps_timeout_s`` (the horizontal position is dead reckoning: the flight controller's position-loss failsafe acts on
 it, as PX4's EKF2 flags its position invalid after its no-aiding timeout), WARN when the barometer was not fused for
 as long (the altitude is on GPS alone), OK otherwise; the values count what was fused, rejected, reset and dropped.
+It goes out ``health_rate_hz`` times per sim second and at once when its level changes.
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ class InsConfig:
             :class:`~mjnav.aerial.GpsInsConfig`).
         reset_timeout_s: reset to the next measurement after this long without one of its kind passing the gate, s.
         gps_timeout_s: no fix fused for this long (sim s): the horizontal position is lost (``ins_health`` ERROR).
+        health_rate_hz: ``ins_health`` messages per sim second; a change of level goes out at once.
         history_s: how late a GPS fix may arrive, s.
         frame: ``enu`` (REP-103) or ``ned`` for the published odometry.
         gravity_mps2: gravity removed from the specific force, m/s².
@@ -74,6 +76,7 @@ class InsConfig:
     baro_gate_nis: float = 25.0
     reset_timeout_s: float = 5.0
     gps_timeout_s: float = 1.0
+    health_rate_hz: float = 5.0
     history_s: float = 0.5
     frame: str = "enu"
     gravity_mps2: float = 9.80665
@@ -95,6 +98,7 @@ class InsConfig:
             "baro_gate_nis",
             "reset_timeout_s",
             "gps_timeout_s",
+            "health_rate_hz",
             "imu_accel_range_mps2",
             "imu_gyro_range_radps",
             "imu_max_gap_s",
@@ -154,21 +158,21 @@ class ImuIntake:
         ready, self._later = due(self._later, incoming, now)
         if not ready:
             return [], np.zeros(0, dtype=np.int64)
-        o = [m.orientation for m in ready]
-        w = [m.angular_velocity for m in ready]
-        f = [m.linear_acceleration for m in ready]
+        rows = np.array([_imu_row(m) for m in ready])  # (N, 11): stamp, attitude (w, x, y, z), rates, force
         before = dict(self.check.rejected)
-        periods = self.check.check(
-            [_stamp(m) for m in ready],
-            [(q.w, q.x, q.y, q.z) for q in o],
-            [(r.x, r.y, r.z) for r in w],
-            [(a.x, a.y, a.z) for a in f],
-        )
-        for reason, n in self.check.rejected.items():
-            if n > before[reason] and _crossed_power_of_ten(before[reason], n):
-                self._log.warning("IMU sample on %s rejected (%s): %d so far", self._key, reason, n)
+        periods = self.check.check(rows[:, 0], rows[:, 1:5], rows[:, 5:8], rows[:, 8:11])
+        if len(ready) > int(np.count_nonzero(periods)):
+            for reason, n in self.check.rejected.items():
+                if n > before[reason] and _crossed_power_of_ten(before[reason], n):
+                    self._log.warning("IMU sample on %s rejected (%s): %d so far", self._key, reason, n)
         keep = periods > 0
         return [m for m, k in zip(ready, keep, strict=True) if k], periods[keep]
+
+
+def _imu_row(m: Any) -> tuple[float, ...]:
+    """A sensor_msgs/Imu as (stamp s, attitude w, x, y, z, rates x, y, z rad/s, specific force x, y, z m/s²)."""
+    st, q, w, a = m.header.stamp, m.orientation, m.angular_velocity, m.linear_acceleration
+    return (ros.seconds(st), q.w, q.x, q.y, q.z, w.x, w.y, w.z, a.x, a.y, a.z)
 
 
 def _crossed_power_of_ten(before: int, after: int) -> bool:
@@ -262,6 +266,7 @@ class InsService(Service[InsConfig]):
         self._baro_altitude_m: float | None = None  # the newest reading, for the baro offset at the start
         self.dropped = {"gps": 0, "baro": 0}  # measurements the filter could not take (stale, no fix, bad)
         self._level = OK
+        self._health_stamp = -math.inf  # of the last ins_health sent
         with self._lock:
             self._fixes.clear()
             self._baros.clear()
@@ -368,7 +373,8 @@ class InsService(Service[InsConfig]):
         return self._datum
 
     def _health(self, stamp: float) -> Any:
-        """``ins_health`` at ``stamp``: level, reason and counters."""
+        """``ins_health`` at ``stamp`` (level, reason and counters), or None when neither its period is over nor its
+        level changed."""
         ins, cfg, check = self.ins, self.config, self.imu.check
         gps_age, baro_age = ins.t_s - ins.gps.last_fused_s, ins.t_s - ins.baro.last_fused_s
         if gps_age >= cfg.gps_timeout_s:
@@ -377,9 +383,13 @@ class InsService(Service[InsConfig]):
             level, text = WARN, f"altitude on GPS alone: no barometer reading fused for {baro_age:.1f} s"
         else:
             level, text = OK, "GPS and barometer fused"
-        if level != self._level:
+        changed = level != self._level
+        if changed:
             (self.log.warning if level > self._level else self.log.info)("health: %s", text)
             self._level = level
+        if not changed and stamp - self._health_stamp < 1.0 / cfg.health_rate_hz - 1e-9:
+            return None
+        self._health_stamp = stamp
         values = {
             "gps_age_s": f"{gps_age:.3f}",
             "gps_fused": str(ins.gps.fused),
@@ -433,5 +443,7 @@ class InsService(Service[InsConfig]):
                 velocity_variance=swap @ cov[3:6, 3:6] @ swap.T,
             )
         # the health first: a subscriber holding this estimate has the health of the same step
-        self.health_pub.put(self._health(stamp))
+        health = self._health(stamp)
+        if health is not None:
+            self.health_pub.put(health)
         self.pub.put(msg)

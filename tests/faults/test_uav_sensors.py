@@ -100,12 +100,13 @@ def _ins_on_the_pad(
     **config: Any,
 ) -> Any:
     """The INS service fed by a UAV sim on the pad for ``seconds`` (IMU 100 Hz, GPS 10 Hz 150 ms late, baro 25 Hz),
-    stepped at 25 Hz; ``forge(t)`` adds forged IMU samples after each real one, ``fix(t, (lat, lon, alt))`` changes
-    (or drops: None) the fix taken at t. Returns the harness (its service, its recorded ``ins_health``)."""
+    stepped at 25 Hz (its health at each step); ``forge(t)`` adds forged IMU samples after each real one,
+    ``fix(t, (lat, lon, alt))`` changes (or drops: None) the fix taken at t. Returns the harness (its service, its
+    recorded ``ins_health``)."""
     from mjnav.services.ins import InsService
     from tests.services.harness import Harness
 
-    h = Harness(InsService, lambda: peer("uav0"), ("ins_health",), robot=None, **config)
+    h = Harness(InsService, lambda: peer("uav0"), ("ins_health",), robot=None, health_rate_hz=25.0, **config)
     sim = UavSimulator("field", seed=5)
     o = sim.origin
     h.send("datum", uav_msgs.nav_sat_fix(0.0, o.lat_deg, o.lon_deg, o.alt_m, 0.0))
