@@ -86,7 +86,7 @@ def bench_ins(steps: int) -> None:
 
     cfg = GpsInsConfig()
     ins = GpsIns(cfg)
-    kf = KalmanFilter(dim_x=9, dim_z=3, dim_u=3)
+    kf = KalmanFilter(dim_x=ins.F.shape[0], dim_z=3, dim_u=3)
     kf.F, kf.B, kf.Q, kf.H, kf.R = ins.F.copy(), ins.G.copy(), ins.Q.copy(), ins.H.copy(), ins.R.copy()
     kf.P = ins.P
     rng = np.random.default_rng(1)
@@ -105,7 +105,7 @@ def bench_ins(steps: int) -> None:
 
     t_ours = best(ours, 3) / steps
     t_peer = best(peer, 3) / steps
-    print(f"\nGPS/INS IMU step (9 states, predict), {steps:,} steps, best of 3")
+    print(f"\nGPS/INS IMU step ({ins.F.shape[0]} states, predict), {steps:,} steps, best of 3")
     print(f"  mjnav GpsIns.predict            {t_ours * 1e6:7.2f} µs")
     print(f"  filterpy KalmanFilter.predict   {t_peer * 1e6:7.2f} µs")
     print(f"  ratio filterpy / mjnav = {t_peer / t_ours:.1f}x  -> goal step <= 25 µs: {verdict(t_ours <= 25e-6)}")

@@ -134,6 +134,7 @@ def _aerial() -> None:
         geodetic_to_enu,
         quat_multiply,
     )
+    from mjnav.aerial.imu_check import ImuCheck
     from mjnav.aerial.ins import GpsIns
     from mjnav.aerial.quadrotor import QuadrotorParams, hover_state, step
 
@@ -151,6 +152,8 @@ def _aerial() -> None:
         ins.predict(np.array([0.0, 0.0, -9.80665]))
     ins.update_gps(np.array([0.1, 0.0, 0.0]))
     ins.update_gps(np.array([0.1, 0.0, 0.0]), ins.t_s - 0.01)  # a delayed fix
+    ins.update_baro(0.1, ins.t_s - 0.005)
+    ImuCheck().check([0.0, 0.01], [(1.0, 0.0, 0.0, 0.0)] * 2, [(0.0, 0.0, 0.0)] * 2, [(0.0, 0.0, 9.80665)] * 2)
 
 
 def _smoothing() -> None:

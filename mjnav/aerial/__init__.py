@@ -2,7 +2,7 @@
 and an onboard task scheduler. Pure: numpy, scipy and numba only.
 
 Conventions: NED local frame, body FRD, ZYX (yaw-pitch-roll) Euler angles in radians, geodetic latitude and
-longitude in degrees, SI units elsewhere.
+longitude in degrees, SI units elsewhere; `ImuCheck` takes IMU samples as sensor_msgs/Imu carries them (REP-103).
 """
 
 from mjnav.aerial.control import (
@@ -57,12 +57,18 @@ from mjnav.aerial.frames import (
     quat_to_rotation,
     rotation_body_to_ned,
 )
+from mjnav.aerial.imu_check import IMU_REJECT_REASONS, ImuCheck, ImuCheckConfig
 from mjnav.aerial.ins import (
+    AidingStats,
+    Fusion,
     GpsIns,
     GpsInsConfig,
     SyntheticFlight,
     accel_ned_from_specific_force,
+    baro_model,
     gps_ins_model,
+    isa_altitude_m,
+    isa_pressure_pa,
     run_filter,
     synthetic_flight,
 )
@@ -81,19 +87,24 @@ from mjnav.aerial.quadrotor import step as quadrotor_step
 from mjnav.aerial.scheduler import SEED_TASK_ORDER, Scheduler, Task, TaskStats, default_task_table
 
 __all__ = [
+    "IMU_REJECT_REASONS",
     "PID",
     "SEED_TASK_ORDER",
     "WGS84_A",
     "WGS84_E2",
     "WGS84_F",
     "AerialError",
+    "AidingStats",
     "CascadeController",
     "CascadeGains",
     "DesignError",
+    "Fusion",
     "GimbalLockError",
     "GpsIns",
     "GpsInsConfig",
     "HinfDesign",
+    "ImuCheck",
+    "ImuCheckConfig",
     "InvalidParameterError",
     "LoopSeparationError",
     "LqrDesign",
@@ -107,6 +118,7 @@ __all__ = [
     "Task",
     "TaskStats",
     "accel_ned_from_specific_force",
+    "baro_model",
     "body_to_ned",
     "care",
     "check_loop_separation",
@@ -129,6 +141,8 @@ __all__ = [
     "hover_linearization",
     "hover_lqr",
     "hover_state",
+    "isa_altitude_m",
+    "isa_pressure_pa",
     "loop_margins",
     "lqr",
     "mix",

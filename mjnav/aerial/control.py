@@ -257,6 +257,13 @@ class CascadeController:
         if self.outer is not None:
             self.outer.reset()
 
+    def clear_horizontal_integrators(self) -> None:
+        """Zero the outer loops' north and east integrators: the trim they hold is for a position that can no longer
+        be measured (the flight controller's position-lost failsafe)."""
+        self.vel_pid.integral[0:2] = 0.0
+        if self.outer is not None:
+            self.outer.integral[0:2] = 0.0
+
     def attitude_bandwidth_rad_s(self, axis: int = 0) -> float:
         """-3 dB bandwidth (rad/s) of the attitude loop (roll: axis 0, pitch: 1) on the linearised axis.
 

@@ -8,7 +8,9 @@ common name of the client's certificate — a service name, or ``operator`` for 
   publishers for their newest message, and receives whatever the router forwards to it;
 - identity ``X`` may publish the topics :data:`~mjnav.msgs.topics.PUBLISH_RIGHTS` gives ``X`` and its own
   per-service keys (``<ns>/status/X``, ``<ns>/lockstep/X``), keep the history of the latched topics it publishes
-  (Zenoh's advanced publisher: a queryable and a token under ``<key>/@adv/``), hold its own liveliness tokens
+  (Zenoh's advanced publisher: a queryable and a token under ``<key>/@adv/``, replies on ``<key>``; and since
+  Zenoh's wildcards never match a verbatim ``@`` chunk, the everyone-rules name those history keys besides ``**``),
+  hold its own liveliness tokens
   (``mjnav/alive/<ns>/X``, ``mjnav/lockstep/<ns>/X``), serve the endpoints
   :data:`~mjnav.msgs.topics.SERVE_RIGHTS` gives it, and call those :data:`~mjnav.msgs.topics.CALL_RIGHTS` gives it;
 - the operator also holds the lockstep slots of the launcher's extra participants (``mjnav demo``'s mission client).
@@ -125,13 +127,15 @@ def grants(namespace: str, services: Sequence[str], extra_participants: Sequence
         serve = [_key(ENDPOINTS[name], namespace, rights, identity) for name, rights in SERVE_RIGHTS.items()]
         query = [_key(ENDPOINTS[name], namespace, rights, identity) for name, rights in CALL_RIGHTS.items()]
         tokens = [alive_key(namespace, identity)] + [lockstep_key(namespace, p) for p in participants]
-        # Latched topics: their publishers answer late joiners from a cache (queryable + token under the key).
-        history = [
-            row.history_key(namespace)
+        # Latched topics: their publishers answer late joiners from a cache (queryable + token under the key; the
+        # replies carry the samples' own key).
+        latched = [
+            row
             for row in TOPICS.values()
             if row.latched and _key(row, namespace, PUBLISH_RIGHTS[row.name], identity) is not None
         ]
-        serve += history
+        history = [row.history_key(namespace) for row in latched]
+        serve += history + [row.key(namespace) for row in latched]
         tokens += history
         if identity == ANYONE:
             put, tokens = [], []
@@ -159,9 +163,14 @@ def access_control(namespace: str, services: Sequence[str], extra_participants: 
     :class:`~mjnav.bus.BusConfig`). Default deny; the allow rules are those of :func:`grants`.
     """
     table = grants(namespace, services, extra_participants)
+    # Zenoh's wildcards never match a verbatim chunk (one starting with "@"): the latched topics' history keys
+    # (``<key>/@adv/**``) are named besides ``**``, or no late joiner ever gets a latched message through the router
+    # (the history query and its reply are not forwarded, the liveliness subscriber that detects late publishers is
+    # refused) — seen as the INS waiting for ``datum`` for ever whenever it subscribed after the sim published it.
+    everything = ["**", *(row.history_key(namespace) for row in TOPICS.values() if row.latched)]
     rules: list[dict[str, Any]] = [
-        _rule("receive", "egress", MESSAGES, ["**"]),
-        _rule("observe", "ingress", _OBSERVE, ["**"]),
+        _rule("receive", "egress", MESSAGES, everything),
+        _rule("observe", "ingress", _OBSERVE, everything),
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []

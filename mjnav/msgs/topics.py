@@ -402,6 +402,17 @@ TOPICS: dict[str, Topic] = {
             stack_namespace="uav0",
         ),
         Topic(
+            "ins_health",
+            "diagnostic_msgs/msg/DiagnosticArray",
+            _S,
+            "ins",
+            "5 Hz + on change",
+            "INS health, stamped as its estimate: OK, WARN (no barometer fused), ERROR (no GPS fix fused for "
+            "`gps_timeout_s`: the horizontal position is lost), with the fused / rejected (χ² gate) / reset counts "
+            "of GPS and barometer and the rejected IMU samples by reason",
+            stack_namespace="uav0",
+        ),
+        Topic(
             "rotor_cmd",
             "sensor_msgs/msg/JointState",
             _S,
@@ -443,7 +454,8 @@ TOPICS: dict[str, Topic] = {
             _S,
             "flight_controller",
             "10 Hz + on change",
-            "disarmed, armed, offboard, landing, failsafe_land",
+            "disarmed, armed, offboard, landing, failsafe_land (no setpoint), failsafe_hold / failsafe_descend "
+            "(position lost), failsafe_return (geofence)",
             stack_namespace="uav0",
         ),
     )
@@ -541,6 +553,7 @@ PUBLISH_RIGHTS: dict[str, tuple[str, ...]] = {
     "baro": ("uav_sim",),
     "mocap": ("uav_sim",),
     "ins_odom": ("ins",),
+    "ins_health": ("ins",),
     "rotor_cmd": ("flight_controller",),
     "setpoint": (OPERATOR,),
     "trajectory": (OPERATOR,),

@@ -18,8 +18,26 @@ arming, the failsafe), ``DLG`` (``flight_state``). The tasks' measured run times
 * **Arming**: ``arm`` true arms a landed vehicle (``armed``: idle rotors); the first setpoint then starts
   ``offboard``. ``arm`` false lands (``landing``: descend at ``land_speed_mps`` over the current position) and
   disarms on touchdown, or disarms at once on the ground.
-* **Failsafe** (PX4's offboard proof of life): in ``offboard``, when no setpoint or trajectory message arrived for
-  ``setpoint_timeout_s`` of sim time, the vehicle lands (``failsafe_land``) and disarms on touchdown.
+* **Failsafes** (PX4's, latched until the vehicle has landed and disarmed):
+
+  - *offboard proof of life*: in ``offboard``, when no setpoint or trajectory message arrived for
+    ``setpoint_timeout_s`` of sim time, the vehicle lands (``failsafe_land``) and disarms on touchdown;
+  - *position lost* (``state_source = "ins"``): when the INS's ``ins_health`` says ERROR — no GPS fix fused for its
+    ``gps_timeout_s`` — the vehicle holds its altitude (the INS's, barometer-aided) and an attitude that keeps its
+    velocity at zero (``failsafe_hold``: the position loop is open, the velocity loop damps the INS's dead-reckoned
+    velocity, the horizontal integrators — a trim for the lost position — are cleared) for ``position_loss_hold_s``,
+    then descends at ``failsafe_descend_speed_mps`` (``failsafe_descend``, PX4's Descend mode) and disarms on
+    touchdown; a landing under way goes straight to ``failsafe_descend``. The drift is the dead-reckoned velocity's
+    error integrated (about 1 m in 8 s without wind, seed 1); a level attitude alone drifted 3.6 m there. An INS
+    that publishes no ``ins_health`` is trusted;
+  - *geofence*: a cylinder about the datum (the ``map`` origin) of radius ``geofence_radius_m`` up to
+    ``geofence_max_altitude_m``; leaving it in ``offboard`` returns over the arming position at the current altitude
+    (``failsafe_return``, PX4's geofence action Return, at ``return_speed_mps``) and lands there (``failsafe_land``),
+    or with ``geofence_action = "land"`` lands where it is. Arming is refused outside the fence and while the
+    position is lost.
+* **IMU** (``state_source = "ins"``): attitude and rates come from the newest sample that passes the plausibility
+  checks of :class:`~mjnav.aerial.imu_check.ImuCheck` (the INS's: :class:`~mjnav.services.ins.ImuIntake`), in
+  stamp order up to the step's time — not from whatever arrived last.
 """
 
 from __future__ import annotations
@@ -38,7 +56,20 @@ from mjnav.msgs import uav as uav_msgs
 from mjnav.runtime import Service
 
 #: Flight states published on ``flight_state``.
-STATES = ("disarmed", "armed", "offboard", "landing", "failsafe_land")
+STATES = (
+    "disarmed",
+    "armed",
+    "offboard",
+    "landing",
+    "failsafe_land",
+    "failsafe_hold",
+    "failsafe_descend",
+    "failsafe_return",
+)
+#: States that steer on the estimated horizontal position (the position-lost failsafe leaves them).
+_ON_POSITION = ("offboard", "landing", "failsafe_land", "failsafe_return")
+#: States that descend over a point to the ground and disarm there.
+_DESCENDING = ("landing", "failsafe_land", "failsafe_descend")
 _ROTORS = ("rotor0", "rotor1", "rotor2", "rotor3")
 #: Peers' messages kept per topic until a step uses them (a peer steps at most once per clock tick).
 _KEEP = 8
@@ -64,6 +95,12 @@ class FlightControllerConfig:
         touchdown_height_m: height above the arming height below which a slow vehicle counts as landed, m.
         idle_speed_rad_s: rotor speed while armed on the ground, rad/s.
         status_rate_hz: ``flight_state`` messages per sim second (and at every change).
+        position_loss_hold_s: position lost: hold attitude and altitude this long before descending, sim s.
+        failsafe_descend_speed_mps: descent rate without a position, m/s.
+        geofence_radius_m: horizontal radius of the fence about the datum, m (0: none).
+        geofence_max_altitude_m: the fence's ceiling above the datum, m (0: none).
+        geofence_action: ``return`` (over the arming position, then land) or ``land`` (where it is).
+        return_speed_mps: mean horizontal speed of the return, m/s.
     """
 
     rate_hz: float = 50.0
@@ -81,15 +118,34 @@ class FlightControllerConfig:
     touchdown_height_m: float = 0.05
     idle_speed_rad_s: float = 200.0
     status_rate_hz: float = 10.0
+    position_loss_hold_s: float = 2.0
+    failsafe_descend_speed_mps: float = 0.3
+    geofence_radius_m: float = 20.0
+    geofence_max_altitude_m: float = 10.0
+    geofence_action: str = "return"
+    return_speed_mps: float = 1.0
 
     def __post_init__(self) -> None:
         if self.controller not in ("pid", "lqr", "hinf", "rpt"):
             raise ValueError(f"controller must be pid, lqr, hinf or rpt, got {self.controller!r}")
         if self.state_source not in ("ins", "mocap"):
             raise ValueError(f"state_source must be ins or mocap, got {self.state_source!r}")
-        for name in ("rpt_eps", "accel_limit_mps2", "setpoint_timeout_s", "land_speed_mps", "status_rate_hz"):
+        if self.geofence_action not in ("return", "land"):
+            raise ValueError(f"geofence_action must be return or land, got {self.geofence_action!r}")
+        for name in (
+            "rpt_eps",
+            "accel_limit_mps2",
+            "setpoint_timeout_s",
+            "land_speed_mps",
+            "status_rate_hz",
+            "failsafe_descend_speed_mps",
+            "return_speed_mps",
+        ):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("position_loss_hold_s", "geofence_radius_m", "geofence_max_altitude_m"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0.0):
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not self.pid_separation > 1.0:
             raise ValueError(f"pid_separation must be > 1, got {self.pid_separation}")
 
@@ -173,18 +229,29 @@ class FlightControllerService(Service[FlightControllerConfig]):
         # two links; a step at t uses only what the peers made at earlier steps, whatever the arrival order.
         self._lock = threading.Lock()
         self._ins_odom: deque[Any] = deque(maxlen=_KEEP)
+        self._ins_health: deque[Any] = deque(maxlen=_KEEP)
         self._trajectories: deque[Any] = deque(maxlen=_KEEP)
+        self.imu: Any = None  # mocap carries attitude and rates; with the INS they come from the newest IMU sample
         if cfg.state_source == "mocap":
             self.state_sub: Any = self.bus.subscribe("mocap")
         else:
+            from mjnav.services.ins import ImuIntake
+
             self.state_sub = self.bus.subscribe("ins_odom", callback=self._keep(self._ins_odom))
-        # mocap carries attitude and rates; with the INS they come from the newest IMU sample
-        self.imu_sub = self.bus.subscribe("imu") if cfg.state_source == "ins" else None
+            self.bus.subscribe("ins_health", callback=self._keep(self._ins_health))
+            self.imu = ImuIntake(self._new_imu_check(), self.log, self.bus.key("imu"))
+            self.bus.subscribe("imu", callback=self.imu.add)
+            self._new_imu_check().check([0.0], [(1.0, 0.0, 0.0, 0.0)], [(0.0, 0.0, 0.0)], [(0.0, 0.0, 9.8)])
         self.setpoint_sub = self.bus.subscribe("setpoint")
         self.trajectory_sub = self.bus.subscribe("trajectory", callback=self._keep(self._trajectories))
         self.arm_sub = self.bus.subscribe("arm")
         self.rotor_pub = self.bus.publisher("rotor_cmd")
         self.state_pub = self.bus.publisher("flight_state")
+
+    def _new_imu_check(self) -> Any:
+        from mjnav.aerial.imu_check import ImuCheck, ImuCheckConfig
+
+        return ImuCheck(ImuCheckConfig(gravity_mps2=self.params.gravity_mps2))
 
     def _keep(self, into: deque[Any]) -> Any:
         def keep(msg: Any) -> None:
@@ -249,9 +316,17 @@ class FlightControllerService(Service[FlightControllerConfig]):
         self._now = 0.0
         self._outbox: list[tuple[Any, Any]] = []  # (publisher, message) made by this step's tasks
         self._ins_state: Any = None  # the INS estimate in use (ins_odom)
+        self._health: Any = None  # the INS health of the same step (ins_health; None: the INS publishes none)
+        self._imu_msg: Any = None  # the newest accepted IMU sample
+        self.home = np.zeros(3)  # NED arming position
+        self._hold_start = 0.0  # when the position-lost hold began
+        self._return: _Reference | None = None
         with self._lock:
             self._ins_odom.clear()
+            self._ins_health.clear()
             self._trajectories.clear()
+        if self.imu is not None:
+            self.imu.reset(self._new_imu_check())
         self.ctl.reset()
 
     def step(self, now: float) -> None:
@@ -274,6 +349,10 @@ class FlightControllerService(Service[FlightControllerConfig]):
         else:
             newest = self._take_newest(self._ins_odom, now)
             msg = self._ins_state = newest if newest is not None else self._ins_state
+            health = self._take_newest(self._ins_health, now)
+            self._health = health if health is not None else self._health
+            samples, _ = self.imu.take(now)
+            self._imu_msg = samples[-1] if samples else self._imu_msg
         if msg is None:
             return
         stamp, pos, quat, vel, rates = uav_msgs.odometry_state(msg)
@@ -285,7 +364,7 @@ class FlightControllerService(Service[FlightControllerConfig]):
             ned = msg.header.frame_id == "map_ned"
             p, v = (pos, vel) if ned else (enu_to_ned(pos), enu_to_ned(vel))
             x[0:3], x[3:6] = p + v * max(0.0, now - stamp), v
-            imu = None if self.imu_sub is None else self.imu_sub.latest()
+            imu = self._imu_msg
             if imu is None:
                 return
             o, w = imu.orientation, imu.angular_velocity
@@ -309,26 +388,36 @@ class FlightControllerService(Service[FlightControllerConfig]):
                 self.command = np.full(4, cfg.idle_speed_rad_s)
                 self.ctl.reset()
                 return
-        else:  # landing: descend over the point where the landing began
+        elif self.state == "failsafe_return":
+            assert self._return is not None
+            pos, vel, acc, yaw = self._return.at(now)
+        else:  # over the point where the failsafe or the landing began: hold its altitude, or descend
             assert self._land_start is not None
             t0, p0 = self._land_start
-            pos = p0.copy()
-            pos[2] = min(p0[2] + cfg.land_speed_mps * (now - t0), self.home_d + 0.5)
-            descending = pos[2] < self.home_d + 0.5
-            vel = np.array([0.0, 0.0, cfg.land_speed_mps if descending else 0.0])
-            acc, yaw = np.zeros(3), self._land_yaw
-            # landed (PX4's land detector in short): near the arming height and still, or — when the estimate
-            # drifted — the descent setpoint is at the ground and for a second the thrust has stayed below 60 % of
-            # hover (the ground carries the vehicle) without a fast vertical motion
-            pressed = pos[2] >= self.home_d and self.ctl.thrust_sp_n < 0.6 * self.params.hover_thrust_n
-            on_ground = pressed and abs(x[5]) < 0.5
-            self._still_since = (self._still_since if self._still_since is not None else now) if on_ground else None
-            near = self.home_d - x[2] < cfg.touchdown_height_m and abs(x[5]) < 0.1 and now - t0 > 0.5
-            if near or (self._still_since is not None and now - self._still_since >= 1.0):
-                self._set_state("disarmed", now)
-                self.command = np.zeros(4)
-                return
+            pos, vel, acc, yaw = p0.copy(), np.zeros(3), np.zeros(3), self._land_yaw
+            if self.state in _DESCENDING:
+                speed = cfg.failsafe_descend_speed_mps if self.state == "failsafe_descend" else cfg.land_speed_mps
+                pos[2] = min(p0[2] + speed * (now - t0), self.home_d + 0.5)
+                vel[2] = speed if pos[2] < self.home_d + 0.5 else 0.0
+                if self._landed(now, x, pos, t0):
+                    self._set_state("disarmed", now)
+                    self.command = np.zeros(4)
+                    return
+            if self.state in ("failsafe_hold", "failsafe_descend"):
+                # no position: the position loop sees no error, the velocity loop damps the dead-reckoned velocity
+                x = x.copy()
+                x[0:2] = pos[0:2]
         self.command = self.ctl.update(x, pos, yaw, dt, velocity_ff=vel, accel_ff=acc)
+
+    def _landed(self, now: float, x: np.ndarray, pos: np.ndarray, t0: float) -> bool:
+        """PX4's land detector in short: near the arming height and still, or — when the estimate drifted — the
+        descent setpoint is at the ground and for a second the thrust has stayed below 60 % of hover (the ground
+        carries the vehicle) without a fast vertical motion."""
+        pressed = pos[2] >= self.home_d and self.ctl.thrust_sp_n < 0.6 * self.params.hover_thrust_n
+        on_ground = pressed and abs(x[5]) < 0.5
+        self._still_since = (self._still_since if self._still_since is not None else now) if on_ground else None
+        near = self.home_d - x[2] < self.config.touchdown_height_m and abs(x[5]) < 0.1 and now - t0 > 0.5
+        return near or (self._still_since is not None and now - self._still_since >= 1.0)
 
     def _servo(self, now: float) -> None:
         self._outbox.append((self.rotor_pub, ros.joint_state(now, _ROTORS, np.zeros(4), self.command)))
@@ -357,18 +446,79 @@ class FlightControllerService(Service[FlightControllerConfig]):
             yaw_enu = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
             p = enu_to_ned(uav_msgs.position(setpoint.pose))
             self.reference = _Reference(np.array([now]), p[None, :], np.array([math.pi / 2 - yaw_enu]))
-        if self.state == "armed" and self.reference is not None and now - self.last_setpoint_t < 1e-9:
+        self._failsafes(now)
+
+    def _failsafes(self, now: float) -> None:
+        """Take off on the first setpoint; the failsafes (see the module's docs) and their next phases."""
+        cfg = self.config
+        lost = self._position_lost()
+        fence = self._outside_fence() if self.state == "offboard" else ""
+        if self.state == "armed" and self.reference is not None and now - self.last_setpoint_t < 1e-9 and not lost:
             self.ctl.reset()
             self._set_state("offboard", now)
-        elif self.state == "offboard" and now - self.last_setpoint_t >= self.config.setpoint_timeout_s - 1e-9:
+        elif self.state in _ON_POSITION and lost:
+            self.log.warning("position lost (%s): failsafe, holding attitude and altitude, then descending", lost)
+            self._start_landing("failsafe_descend" if self.state in _DESCENDING else "failsafe_hold", now)
+            self.ctl.clear_horizontal_integrators()
+        elif self.state == "offboard" and now - self.last_setpoint_t >= cfg.setpoint_timeout_s - 1e-9:
             self.log.warning("no setpoint for %.2f s of sim time: failsafe, landing", now - self.last_setpoint_t)
             self._start_landing("failsafe_land", now)
+        elif fence:
+            self.log.warning("geofence left (%s): failsafe, %s", fence, cfg.geofence_action)
+            if cfg.geofence_action == "land":
+                self._start_landing("failsafe_land", now)
+            else:
+                self._start_return(now)
+        elif self.state == "failsafe_hold" and now - self._hold_start >= cfg.position_loss_hold_s - 1e-9:
+            self._start_landing("failsafe_descend", now)
+        elif self.state == "failsafe_return" and self._return is not None and now >= self._return.t1 + 1.0:
+            self._start_landing("failsafe_land", now)
+
+    def _position_lost(self) -> str:
+        """Why the INS's newest health says the horizontal position is lost ("" when it does not, or there is
+        none)."""
+        health = self._health
+        if health is None or not health.status or health.status[0].level < health.status[0].ERROR:
+            return ""
+        return str(health.status[0].message)
+
+    def _outside_fence(self) -> str:
+        """How the estimated position is outside the geofence ("" inside it, or without an estimate)."""
+        x, cfg = self.x, self.config
+        if x is None:
+            return ""
+        radius, altitude = math.hypot(x[0], x[1]), -x[2]
+        if cfg.geofence_radius_m > 0.0 and radius > cfg.geofence_radius_m:
+            return f"{radius:.1f} m from the datum, the fence's radius is {cfg.geofence_radius_m:g} m"
+        if cfg.geofence_max_altitude_m > 0.0 and altitude > cfg.geofence_max_altitude_m:
+            return f"{altitude:.1f} m above the datum, the fence's ceiling is {cfg.geofence_max_altitude_m:g} m"
+        return ""
+
+    def _start_return(self, now: float) -> None:
+        """Fly over the arming position at the current altitude (below the ceiling) at ``return_speed_mps``."""
+        from mjnav.aerial import euler_from_quat
+
+        assert self.x is not None
+        cfg = self.config
+        p = self.x[0:3].copy()
+        target = np.array([self.home[0], self.home[1], p[2]])
+        if cfg.geofence_max_altitude_m > 0.0:
+            target[2] = max(p[2], -0.9 * cfg.geofence_max_altitude_m)
+        duration = max(1.0, float(np.linalg.norm(target - p)) / cfg.return_speed_mps)
+        yaw = float(euler_from_quat(self.x[6:10])[2])
+        self._return = _Reference(np.array([now, now + duration]), np.stack([p, target]), np.array([yaw, yaw]))
+        self._set_state("failsafe_return", now)
 
     def _on_arm(self, arm: bool, now: float) -> None:
         if arm and self.state == "disarmed":
             if self.x is None:
                 self.log.warning("arming refused: no state estimate yet")
                 return
+            refusal = self._position_lost() or self._outside_fence()
+            if refusal:
+                self.log.warning("arming refused: %s", refusal)
+                return
+            self.home = self.x[0:3].copy()
             self.home_d = float(self.x[2])
             self.reference = None
             self._set_state("armed", now)
@@ -378,8 +528,10 @@ class FlightControllerService(Service[FlightControllerConfig]):
             self._start_landing("landing", now)
 
     def _start_landing(self, state: str, now: float) -> None:
+        """Enter ``state`` (a landing, or the position-lost hold), over the current position and heading."""
         assert self.x is not None
         self._land_start = (now, self.x[0:3].copy())
+        self._hold_start = now
         self._still_since = None
         from mjnav.aerial import euler_from_quat
 

@@ -6,7 +6,15 @@ Publishes, stamped in sim time: ``clock``, ``imu`` (body FLU specific force and 
 and twist in ENU: the motion-capture system; the twist's linear part is expressed in ``map``), ``ground_truth``
 (true pose, for evaluation) and ``sim_status`` (collisions with obstacles, real-time factor, motor watchdog). It
 drives the rotors with the newest ``rotor_cmd`` (speeds, rad/s), read at every IMU tick; an ESC-style watchdog
-stops them when that command is older than ``motor_timeout_s`` of sim time.
+stops them when that command is older than ``motor_timeout_s`` of sim time. A command is taken only when it names
+four rotors and is stamped neither before the last one taken nor after the sim time (a stale or forged flood does not
+displace the flight controller's commands; one stamped like them and arriving later still would: only ``--secure``,
+where the router takes ``rotor_cmd`` from the flight controller's identity alone, prevents that).
+
+GPS faults can be injected by sim-time windows, as PX4 SITL's ``failure gps off`` / ``failure gps wrong``:
+``gps_dropout_s`` (no fix is published for a fix taken in a window: the receiver lost its fix) and ``gps_glitch_s``
+(a fix taken in a window is off by ``gps_glitch_m``, ENU). The noise is drawn for every fix either way, so a flight
+with a fault sees the same noise as the flight without it.
 
 Time and lockstep are the ground sim's (:class:`~mjnav.services.sim.SimService`, whose stepping loop this service
 reuses): sim time advances one clock tick at a time once every lockstep participant has finished the step that is
@@ -15,17 +23,23 @@ due, so a flight is repeatable to the last bit.
 
 from __future__ import annotations
 
+import logging
 import math
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mjnav.msgs import msg_class, ros
 from mjnav.msgs import uav as uav_msgs
 from mjnav.runtime.simtime import LockstepBarrier, Schedule
 from mjnav.services.sim import SIM_STATUS_RATE_HZ, ClockOut, SimService
+
+log = logging.getLogger("mjnav.uav_sim")
 
 
 @dataclass(frozen=True)
@@ -47,6 +61,10 @@ class UavSimConfig:
         accel_noise_mps2, accel_bias_mps2, gyro_noise_radps, attitude_noise_rad, gps_noise_m, baro_noise_pa: sensor
             noise (see :class:`~mjnav.sim.uav.UavNoise`).
         motor_timeout_s: stop the rotors when the newest ``rotor_cmd`` is this old (sim seconds).
+        gps_dropout_s: pairs ``[start, end, start, end, ...]`` of sim-time windows (s, half-open) in which the GPS
+            has no fix (fixes taken then are not published).
+        gps_glitch_s: windows (as ``gps_dropout_s``) in which the fixes taken are off by ``gps_glitch_m``.
+        gps_glitch_m: (3,) ENU offset of a glitching fix, m.
         record_path: write an MP4 of the flight here ("" = no recording); record_fps: its frame rate;
             record_camera: a model camera (``uav/chase``, a chase camera), ``follow`` or ``top``.
         lockstep, lockstep_participants, lockstep_timeout_s: as the ground sim's.
@@ -76,6 +94,9 @@ class UavSimConfig:
     gps_noise_m: float = 1.0
     baro_noise_pa: float = 2.0
     motor_timeout_s: float = 0.5
+    gps_dropout_s: tuple[float, ...] = ()
+    gps_glitch_s: tuple[float, ...] = ()
+    gps_glitch_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     record_path: str = ""
     record_fps: float = 30.0
     record_camera: str = "uav/chase"
@@ -106,6 +127,21 @@ class UavSimConfig:
             raise ValueError(f"gps_delay_s must be in [0, 0.4] s, got {self.gps_delay_s}")
         if not (-90.0 <= self.origin_lat_deg <= 90.0 and -180.0 <= self.origin_lon_deg <= 180.0):
             raise ValueError("origin_lat_deg / origin_lon_deg out of range")
+        for name in ("gps_dropout_s", "gps_glitch_s"):
+            w = getattr(self, name)
+            if len(w) % 2 or not all(math.isfinite(t) for t in w) or any(a >= b for a, b in _pairs(w)):
+                raise ValueError(f"{name} must be pairs [start, end, ...] of finite times with start < end, got {w}")
+        if not all(math.isfinite(v) for v in self.gps_glitch_m):
+            raise ValueError(f"gps_glitch_m must be finite, got {self.gps_glitch_m}")
+
+
+def in_windows(t_s: float, windows: tuple[float, ...]) -> bool:
+    """Whether sim time ``t_s`` lies in one of the half-open windows ``[start, end, start, end, ...]``."""
+    return any(a <= t_s < b for a, b in _pairs(windows))
+
+
+def _pairs(windows: tuple[float, ...]) -> list[tuple[float, float]]:
+    return list(zip(windows[0::2], windows[1::2], strict=False))
 
 
 class UavBridge:
@@ -120,7 +156,10 @@ class UavBridge:
         self.config = config
         self.recorder = recorder
         self._bus = bus
-        self._cmd = bus.subscribe("rotor_cmd")
+        self._lock = threading.Lock()
+        self._command: Any = None  # the newest acceptable rotor_cmd not yet applied
+        self._command_stamp_s = -math.inf
+        self.commands_refused = 0
         self._pub = {
             name: bus.publisher(name) for name in ("imu", "gps", "baro", "mocap", "ground_truth", "sim_status")
         }
@@ -149,6 +188,7 @@ class UavBridge:
         #: The sim's lockstep barrier (None: free-running), whose waiting time ``sim_status`` reports.
         self.barrier: LockstepBarrier | None = None
         self._started = False
+        bus.subscribe("rotor_cmd", callback=self._on_command)
 
     @property
     def time_s(self) -> float:
@@ -202,9 +242,28 @@ class UavBridge:
         for pub, msg in outbox:
             pub.put(msg)
 
+    def _on_command(self, cmd: Any) -> None:
+        stamp = ros.seconds(cmd.header.stamp)
+        with self._lock:
+            if len(cmd.velocity) == 4 and self._command_stamp_s <= stamp <= self._ticks * self.tick_s + 1e-6:
+                self._command, self._command_stamp_s = cmd, stamp
+                return
+            self.commands_refused += 1
+            refused = self.commands_refused
+        if refused & (refused - 1) == 0:  # 1, 2, 4, 8, …
+            log.warning(
+                "rotor_cmd refused (%d so far): %d speeds stamped %.3f s, the last taken %.3f s, sim time %.3f s",
+                refused,
+                len(cmd.velocity),
+                stamp,
+                self._command_stamp_s,
+                self._ticks * self.tick_s,
+            )
+
     def _apply_command(self, t: float) -> None:
-        cmd = self._cmd.take()
-        if cmd is not None and len(cmd.velocity) == 4:
+        with self._lock:
+            cmd, self._command = self._command, None
+        if cmd is not None:
             self.sim.set_rotor_speeds(cmd.velocity)
             self._last_cmd_t = t
             self.watchdog_tripped = False
@@ -246,8 +305,15 @@ class UavBridge:
             truth = truth or sim.truth()
             self._put("ground_truth", uav_msgs.pose_stamped3d(t, "map", truth.position_m, truth.quat_wxyz))
         if self._gps.due(t):
-            lat, lon, alt = sim.gps_fix()
-            self._fixes.append((t + cfg.gps_delay_s, uav_msgs.nav_sat_fix(t, lat, lon, alt, cfg.gps_noise_m)))
+            lat, lon, alt = sim.gps_fix()  # drawn even in a dropout: the noise that follows stays the same
+            if in_windows(t, cfg.gps_glitch_s):
+                from mjnav.aerial import enu_to_geodetic, geodetic_to_enu
+
+                o = sim.origin
+                e, n, u = np.add(geodetic_to_enu(lat, lon, alt, o.lat_deg, o.lon_deg, o.alt_m), cfg.gps_glitch_m)
+                lat, lon, alt = (float(v) for v in enu_to_geodetic(e, n, u, o.lat_deg, o.lon_deg, o.alt_m))
+            if not in_windows(t, cfg.gps_dropout_s):
+                self._fixes.append((t + cfg.gps_delay_s, uav_msgs.nav_sat_fix(t, lat, lon, alt, cfg.gps_noise_m)))
         while self._fixes and self._fixes[0][0] <= t + 1e-9:
             self._put("gps", self._fixes.popleft()[1])
         if self._baro.due(t):
@@ -332,6 +398,13 @@ class UavSimService(SimService):
             if cfg.lockstep
             else "free-running",
         )
+        if cfg.gps_dropout_s or cfg.gps_glitch_s:
+            self.log.warning(
+                "GPS faults injected: no fix in %s s, fixes off by %s m (ENU) in %s s",
+                list(cfg.gps_dropout_s),
+                list(cfg.gps_glitch_m),
+                list(cfg.gps_glitch_s),
+            )
 
     def deactivate(self) -> None:
         self.sim.set_rotor_speeds([0.0] * 4)

@@ -251,7 +251,7 @@ def test_cascade_flies_on_the_gps_ins_estimate() -> None:
     rng = np.random.default_rng(8)
     cfg = GpsInsConfig(imu_rate_hz=250.0)
     dt = 1.0 / cfg.imu_rate_hz
-    ins = GpsIns(cfg, x0=np.zeros(9))
+    ins = GpsIns(cfg, x0=np.zeros(10))
     ctl = CascadeController(P)
     x = hover_state(P)
     bias = np.array([0.05, -0.03, 0.08])
