@@ -387,7 +387,7 @@ class InsService(Service[InsConfig]):
         if changed:
             (self.log.warning if level > self._level else self.log.info)("health: %s", text)
             self._level = level
-        if not changed and stamp - self._health_stamp < 1.0 / cfg.health_rate_hz - 1e-9:
+        if not changed and stamp - self._health_stamp < 1.0 / cfg.health_rate_hz - 1e-6:  # stamps: whole ns
             return None
         self._health_stamp = stamp
         values = {
