@@ -66,8 +66,10 @@ def test_a_55_m_gps_outlier_moves_the_flight_less_than_a_decimetre() -> None:
     assert hit.max_error_m <= clean.max_error_m + 0.1 and hit.rms_error_m <= clean.rms_error_m + 0.1
     # and to the last bit the flight in which that fix was lost: the outlier changed nothing but the count of
     # rejected fixes (a fix fewer moves a flight on the INS by up to 0.2 m later on, as any fix does)
-    np.testing.assert_array_equal(t_hit, t_lost)
-    np.testing.assert_array_equal(p_hit, p_lost)
+    n = min(len(t_hit), len(t_lost))  # the recordings end when each client stops listening, a pose apart or so
+    assert max(len(t_hit), len(t_lost)) - n <= 2 and t_hit[n - 1] >= hit_states[-1][0] - 0.05  # to the disarming
+    np.testing.assert_array_equal(t_hit[:n], t_lost[:n])
+    np.testing.assert_array_equal(p_hit[:n], p_lost[:n])
     assert hit.max_error_m == lost.max_error_m
 
 
